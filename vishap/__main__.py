@@ -1,0 +1,5 @@
+import sys
+
+from vishap.cli import main
+
+sys.exit(main())

@@ -1,0 +1,1 @@
+"""Registration (VisHap §2.2, Eq. 3): the rigid transform ``T_robot_cam`` and the calibrations behind it."""

@@ -1,0 +1,405 @@
+"""The stereo rig: two calibrated cameras, their rectification, projection and triangulation.
+
+Frames and conventions (OpenCV): the rig frame is the **left camera frame** (``p_cam``: x right,
+y down, z forward, metres). The right camera sees ``p_right = R @ p_cam + T``; the baseline is
+``|T|``. Pixels are float ``(u, v)`` with the centre of the top-left pixel at (0, 0).
+Distortion follows OpenCV's model (k1, k2, p1, p2[, k3[, k4, k5, k6]]).
+
+Files are OpenCV FileStorage YAML (what ``cv2.FileStorage`` reads and writes) with the nodes
+``image_width``, ``image_height``, ``K1``, ``D1``, ``K2``, ``D2``, ``R``, ``T`` and the
+rectification ``R1``, ``R2``, ``P1``, ``P2``, ``Q`` (all required in a file; the constructor
+computes the rectification with ``cv2.stereoRectify`` when it is not given).
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from vishap._core.check import as_array, as_points
+from vishap._core.config import write_atomic
+from vishap._core.errors import ConfigError
+from vishap._core.pose import is_rotation
+
+__all__ = ["StereoRig"]
+
+_DIST_LENGTHS = (4, 5, 8, 12, 14)
+_RECT_FIELDS = {"R1": (3, 3), "R2": (3, 3), "P1": (3, 4), "P2": (3, 4), "Q": (4, 4)}
+
+
+def _distort_project(p: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """Pinhole + OpenCV radial/tangential distortion, vectorised; ``p`` (N, 3) in that camera's frame."""
+    z = p[:, 2]
+    x = p[:, 0] / z
+    y = p[:, 1] / z
+    d = np.zeros(8)
+    d[: min(8, dist.size)] = dist[:8]
+    k1, k2, p1, p2, k3, k4, k5, k6 = d
+    r2 = x * x + y * y
+    radial = (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    u = K[0, 0] * xd + K[0, 1] * yd + K[0, 2]
+    v = K[1, 1] * yd + K[1, 2]
+    return np.stack([u, v], axis=1)
+
+
+@dataclass(eq=False)
+class StereoRig:
+    """Two calibrated cameras. All arrays are float64; see the module docstring for conventions.
+
+    Attributes
+    ----------
+    image_size: (width, height) in pixels, the same for both cameras.
+    K_left, K_right: 3×3 intrinsic matrices (pixels).
+    dist_left, dist_right: OpenCV distortion coefficients (4, 5, 8, 12 or 14 values).
+    R, T: pose of the right camera: ``p_right = R @ p_left + T`` (T in metres).
+    R1, R2, P1, P2, Q: rectification (``cv2.stereoRectify``); computed when not given.
+    """
+
+    image_size: tuple[int, int]
+    K_left: np.ndarray
+    dist_left: np.ndarray
+    K_right: np.ndarray
+    dist_right: np.ndarray
+    R: np.ndarray
+    T: np.ndarray
+    R1: np.ndarray | None = None
+    R2: np.ndarray | None = None
+    P1: np.ndarray | None = None
+    P2: np.ndarray | None = None
+    Q: np.ndarray | None = None
+    _maps: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        w, h = (int(s) for s in self.image_size)
+        if w <= 0 or h <= 0:
+            raise ConfigError(f"image size must be positive, got {self.image_size}", field="image_size")
+        self.image_size = (w, h)
+        self.K_left = _check_K(self.K_left, "K1")
+        self.K_right = _check_K(self.K_right, "K2")
+        self.dist_left = _check_dist(self.dist_left, "D1")
+        self.dist_right = _check_dist(self.dist_right, "D2")
+        self.R = as_array(self.R, (3, 3), "R")
+        if not is_rotation(self.R, tol=1e-6):
+            raise ConfigError("not a proper rotation (orthonormal, det +1)", field="R")
+        self.T = as_array(np.asarray(self.T, dtype=np.float64).reshape(-1), (3,), "T")
+        if np.linalg.norm(self.T) <= 0:
+            raise ConfigError("baseline is zero", field="T")
+        given = [getattr(self, k) is not None for k in _RECT_FIELDS]
+        if any(given) and not all(given):
+            missing = [k for k, g in zip(_RECT_FIELDS, given) if not g]
+            raise ConfigError(f"rectification is partial: missing {missing}", field=missing[0])
+        if all(given):
+            for k, shape in _RECT_FIELDS.items():
+                setattr(self, k, as_array(getattr(self, k), shape, k))
+        else:
+            self._rectify()
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def from_fov(
+        cls,
+        width: int = 640,
+        height: int = 480,
+        hfov_deg: float = 60.0,
+        baseline_m: float = 0.06,
+    ) -> "StereoRig":
+        """An ideal parallel rig: square pixels, centred principal point, no distortion."""
+        if not (0.0 < hfov_deg < 180.0):
+            raise ConfigError(f"horizontal field of view must be in (0, 180) degrees, got {hfov_deg}", field="hfov_deg")
+        if baseline_m <= 0:
+            raise ConfigError(f"baseline must be positive, got {baseline_m}", field="baseline_m")
+        f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+        K = np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
+        return cls(
+            image_size=(width, height),
+            K_left=K.copy(),
+            dist_left=np.zeros(5),
+            K_right=K.copy(),
+            dist_right=np.zeros(5),
+            R=np.eye(3),
+            T=np.array([-baseline_m, 0.0, 0.0]),
+        )
+
+    def _rectify(self) -> None:
+        R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(
+            self.K_left, self.dist_left, self.K_right, self.dist_right, self.image_size,
+            self.R, self.T.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY, alpha=0,
+        )
+        self.R1, self.R2, self.P1, self.P2, self.Q = R1, R2, P1, P2, Q
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def width(self) -> int:
+        return self.image_size[0]
+
+    @property
+    def height(self) -> int:
+        return self.image_size[1]
+
+    @property
+    def baseline_m(self) -> float:
+        """Distance between the optical centres (metres)."""
+        return float(np.linalg.norm(self.T))
+
+    @property
+    def fx_px(self) -> float:
+        """Focal length of the left camera in pixels."""
+        return float(self.K_left[0, 0])
+
+    @property
+    def hfov_deg(self) -> float:
+        """Horizontal field of view of the left camera (degrees)."""
+        return math.degrees(2.0 * math.atan2(self.width / 2.0, self.fx_px))
+
+    @property
+    def rectified_fx_px(self) -> float:
+        return float(self.P1[0, 0])
+
+    @property
+    def rectified_baseline_m(self) -> float:
+        """Baseline along the rectified x axis: ``-P2[0, 3] / P2[0, 0]``."""
+        return float(-self.P2[0, 3] / self.P2[0, 0])
+
+    # ------------------------------------------------------------------ geometry
+    def project(self, p_cam) -> tuple[np.ndarray, np.ndarray]:
+        """Project 3-D points (left-camera frame, metres) into both images.
+
+        Returns ``(uv_left, uv_right)``, each (N, 2) pixels. Points at or behind a camera's
+        centre give NaN for that camera.
+        """
+        p = as_points(p_cam, "p_cam", finite=False)
+        p_right = p @ self.R.T + self.T
+        uv_l = _distort_project(p, self.K_left, self.dist_left)
+        uv_r = _distort_project(p_right, self.K_right, self.dist_right)
+        uv_l[p[:, 2] <= 0] = np.nan
+        uv_r[p_right[:, 2] <= 0] = np.nan
+        return uv_l, uv_r
+
+    def undistort_normalized(self, uv, side: str = "left") -> np.ndarray:
+        """Pixels to normalised, undistorted image coordinates (x/z, y/z) of one camera."""
+        K, d = (self.K_left, self.dist_left) if side == "left" else (self.K_right, self.dist_right)
+        uv = as_points(uv, f"uv_{side}", dim=2)
+        if not np.any(d):
+            return np.stack([(uv[:, 0] - K[0, 2] - K[0, 1] * (uv[:, 1] - K[1, 2]) / K[1, 1]) / K[0, 0],
+                             (uv[:, 1] - K[1, 2]) / K[1, 1]], axis=1)
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-14)
+        out = cv2.undistortPoints(uv.reshape(-1, 1, 2), K, d, None, None, None, crit)
+        return out.reshape(-1, 2)
+
+    def triangulate(self, uv_left, uv_right, *, iterations: int = 4) -> np.ndarray:
+        """Triangulate matched pixels (raw, distorted images) to ``p_cam`` (N, 3), metres.
+
+        Midpoint of the two back-projected rays, then Gauss–Newton on the reprojection error in
+        both images (exact for noise-free correspondences, the maximum-likelihood point under
+        isotropic pixel noise otherwise).
+        """
+        uv_l = as_points(uv_left, "uv_left", dim=2)
+        uv_r = as_points(uv_right, "uv_right", dim=2)
+        if uv_l.shape != uv_r.shape:
+            raise ConfigError(f"uv_left {uv_l.shape} and uv_right {uv_r.shape} differ in shape", field="uv_right")
+        xl = self.undistort_normalized(uv_l, "left")
+        xr = self.undistort_normalized(uv_r, "right")
+        # Rays in the left frame: p = s*dl (left centre 0), p = c_r + t*dr
+        dl = np.column_stack([xl, np.ones(len(xl))])
+        dr = np.column_stack([xr, np.ones(len(xr))]) @ self.R  # R^T applied to row vectors
+        c_r = -self.R.T @ self.T
+        # closest points of two lines
+        a = np.einsum("ij,ij->i", dl, dl)
+        b = np.einsum("ij,ij->i", dl, dr)
+        c = np.einsum("ij,ij->i", dr, dr)
+        w0 = -c_r  # origin_l - origin_r
+        d_ = dl @ w0
+        e_ = dr @ w0
+        den = a * c - b * b
+        den = np.where(np.abs(den) < 1e-18, 1e-18, den)
+        s = (b * e_ - c * d_) / den
+        t = (a * e_ - b * d_) / den
+        p = 0.5 * (dl * s[:, None] + (c_r + dr * t[:, None]))
+        target = np.hstack([uv_l, uv_r])
+        h = 1e-7
+        for _ in range(iterations):
+            r = np.hstack(self.project(p)) - target  # (N, 4)
+            J = np.empty((len(p), 4, 3))
+            for k in range(3):
+                dp = np.zeros(3)
+                dp[k] = h
+                J[:, :, k] = (np.hstack(self.project(p + dp)) - np.hstack(self.project(p - dp))) / (2 * h)
+            JtJ = np.einsum("nik,nil->nkl", J, J)
+            Jtr = np.einsum("nik,ni->nk", J, r)
+            step = np.linalg.solve(JtJ + 1e-30 * np.eye(3), Jtr[..., None])[..., 0]
+            p = p - step
+            if np.max(np.abs(step)) < 1e-13:
+                break
+        return p
+
+    # ------------------------------------------------------------------ rectification
+    def rectify_points(self, uv, side: str = "left") -> np.ndarray:
+        """Raw pixels of one camera to pixels of its rectified image (N, 2)."""
+        uv = as_points(uv, f"uv_{side}", dim=2)
+        K, d, Rr, P = (
+            (self.K_left, self.dist_left, self.R1, self.P1)
+            if side == "left"
+            else (self.K_right, self.dist_right, self.R2, self.P2)
+        )
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-14)
+        return cv2.undistortPoints(uv.reshape(-1, 1, 2), K, d, None, Rr, P, crit).reshape(-1, 2)
+
+    def triangulate_rectified(self, uv_left_rect, uv_right_rect) -> np.ndarray:
+        """Triangulate rectified pixels (same row, disparity ``u_l - u_r``) to ``p_cam`` (N, 3)."""
+        l = as_points(uv_left_rect, "uv_left_rect", dim=2)
+        r = as_points(uv_right_rect, "uv_right_rect", dim=2)
+        disp = l[:, 0] - r[:, 0]
+        hom = np.column_stack([l[:, 0], l[:, 1], disp, np.ones(len(l))]) @ self.Q.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p_rect = hom[:, :3] / hom[:, 3:4]
+        return p_rect @ self.R1  # rectified-left frame back to the left camera frame (R1^T p)
+
+    def rectification_maps(self, side: str = "left") -> tuple[np.ndarray, np.ndarray]:
+        """``cv2.remap`` maps (fixed-point, fast) from raw to rectified image; computed once."""
+        if side not in self._maps:
+            K, d, Rr, P = (
+                (self.K_left, self.dist_left, self.R1, self.P1)
+                if side == "left"
+                else (self.K_right, self.dist_right, self.R2, self.P2)
+            )
+            self._maps[side] = cv2.initUndistortRectifyMap(K, d, Rr, P, self.image_size, cv2.CV_16SC2)
+        return self._maps[side]
+
+    def rectify_image(self, image: np.ndarray, side: str = "left") -> np.ndarray:
+        """Warp a raw image of one camera into its rectified image."""
+        m1, m2 = self.rectification_maps(side)
+        return cv2.remap(image, m1, m2, cv2.INTER_LINEAR)
+
+    # ------------------------------------------------------------------ files
+    def to_filestorage_string(self) -> str:
+        fs = cv2.FileStorage(".yaml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
+        fs.write("image_width", int(self.width))
+        fs.write("image_height", int(self.height))
+        for name, arr in self._arrays().items():
+            fs.write(name, np.ascontiguousarray(arr, dtype=np.float64))
+        return fs.releaseAndGetString()
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the rig as OpenCV FileStorage YAML (atomically: never a half-written file)."""
+        return write_atomic(path, self.to_filestorage_string())
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "StereoRig":
+        """Read a rig file; any problem raises one :class:`ConfigError` naming the file and field."""
+        path = Path(path)
+        if not path.is_file():
+            raise ConfigError("rig file not found", file=path)
+        try:
+            head = path.read_bytes()[:64]
+        except OSError as exc:
+            raise ConfigError(f"cannot read rig file ({exc})", file=path) from None
+        if not head.lstrip().startswith(b"%YAML") and not head.lstrip().startswith(b"<?xml"):
+            raise ConfigError("not an OpenCV FileStorage file (expected a '%YAML:1.0' header)", file=path)
+        try:
+            fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+            ok = fs.isOpened()
+        except cv2.error as exc:
+            msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "parse error"
+            raise ConfigError(f"cannot parse rig file ({msg})", file=path) from None
+        if not ok:
+            raise ConfigError("cannot open rig file", file=path)
+        try:
+            w = _read_int(fs, "image_width", path)
+            h = _read_int(fs, "image_height", path)
+            mats = {}
+            for name, shape in (("K1", (3, 3)), ("D1", None), ("K2", (3, 3)), ("D2", None), ("R", (3, 3)), ("T", (3,))):
+                mats[name] = _read_mat(fs, name, shape, path)
+            # rectification is required in a file (a truncated file loses it first)
+            rect = {name: _read_mat(fs, name, shape, path) for name, shape in _RECT_FIELDS.items()}
+        finally:
+            fs.release()
+        try:
+            return cls(
+                image_size=(w, h), K_left=mats["K1"], dist_left=mats["D1"], K_right=mats["K2"],
+                dist_right=mats["D2"], R=mats["R"], T=mats["T"], **rect,
+            )
+        except ConfigError as exc:
+            raise ConfigError(exc.reason, file=path, field=exc.field) from None
+        except Exception as exc:  # shape checks from vishap._core.check
+            raise ConfigError(str(exc), file=path) from None
+
+    def _arrays(self) -> dict[str, np.ndarray]:
+        return {
+            "K1": self.K_left, "D1": self.dist_left.reshape(1, -1), "K2": self.K_right,
+            "D2": self.dist_right.reshape(1, -1), "R": self.R, "T": self.T.reshape(3, 1),
+            "R1": self.R1, "R2": self.R2, "P1": self.P1, "P2": self.P2, "Q": self.Q,
+        }
+
+    def equals(self, other: "StereoRig") -> bool:
+        """Exact equality of every parameter (bit for bit)."""
+        if self.image_size != other.image_size:
+            return False
+        a, b = self._arrays(), other._arrays()
+        return all(np.array_equal(a[k], b[k]) for k in a)
+
+    def summary(self) -> dict:
+        """A JSON-ready description of the rig."""
+        return {
+            "image_size": list(self.image_size),
+            "fx_px": self.fx_px,
+            "hfov_deg": self.hfov_deg,
+            "baseline_m": self.baseline_m,
+            "rectified_fx_px": self.rectified_fx_px,
+            "rectified_baseline_m": self.rectified_baseline_m,
+            "distortion": bool(np.any(self.dist_left) or np.any(self.dist_right)),
+        }
+
+
+def _check_K(K, name: str) -> np.ndarray:
+    K = as_array(K, (3, 3), name)
+    if K[0, 0] <= 0 or K[1, 1] <= 0 or not np.allclose(K[2], [0, 0, 1]) or K[1, 0] != 0:
+        raise ConfigError("not an intrinsic matrix (fx, fy > 0, last row [0 0 1])", field=name)
+    return K
+
+
+def _check_dist(d, name: str) -> np.ndarray:
+    d = np.asarray(d, dtype=np.float64).reshape(-1)
+    if d.size not in _DIST_LENGTHS:
+        raise ConfigError(f"expected {', '.join(map(str, _DIST_LENGTHS))} coefficients, got {d.size}", field=name)
+    if not np.all(np.isfinite(d)):
+        raise ConfigError("contains NaN or inf", field=name)
+    return d
+
+
+def _read_int(fs: cv2.FileStorage, name: str, path: Path) -> int:
+    node = fs.getNode(name)
+    if node.empty() or node.isNone():
+        raise ConfigError("missing", file=path, field=name)
+    if not node.isInt():
+        raise ConfigError("expected an integer", file=path, field=name)
+    return int(node.real())
+
+
+def _read_mat(fs: cv2.FileStorage, name: str, shape, path: Path) -> np.ndarray:
+    node = fs.getNode(name)
+    if node.empty() or node.isNone():
+        raise ConfigError("missing", file=path, field=name)
+    if not node.isMap():
+        raise ConfigError("expected an !!opencv-matrix", file=path, field=name)
+    try:
+        m = node.mat()
+    except cv2.error:
+        m = None
+    if m is None:
+        raise ConfigError("expected an !!opencv-matrix with rows, cols, dt and data", file=path, field=name)
+    m = np.asarray(m, dtype=np.float64)
+    if shape is None:
+        return m.reshape(-1)
+    if m.size != int(np.prod(shape)):
+        raise ConfigError(f"expected {shape} values, got matrix of shape {m.shape}", file=path, field=name)
+    m = m.reshape(shape)
+    if not np.all(np.isfinite(m)):
+        raise ConfigError("contains NaN or inf", file=path, field=name)
+    return m
