@@ -36,6 +36,7 @@ class LiveServoReport:
     step_us_median: float         # cost of one servo step inside the process
     steps: int
     error: str | None = None
+    lateness_s: np.ndarray | None = None   # every tick's lateness, for charts
 
 
 def _servo_main(make_servo, period, priority, cpu, target_name, target_size, state_name, state_size,
@@ -74,6 +75,7 @@ def _servo_main(make_servo, period, priority, cpu, target_name, target_size, sta
             lateness=stats.summary(),
             step_us_median=float(np.median(costs[: min(n, costs.shape[0])]) * 1e6) if n else float("nan"),
             steps=n,
+            lateness_s=stats.values.copy(),
         )
         targets.close(unlink=False)
         states.close(unlink=False)
