@@ -1,0 +1,113 @@
+import numpy as np
+import pytest
+
+from vishap.world.predictor import FiniteDifference, KalmanPredictor, LastSample, contact_point
+from vishap.world.scene import load_scene
+from vishap.world.world import World
+
+
+def _run(world, path, rate_hz=30.0, duration_s=1.0, noise_m=0.0, seed=0, device=None):
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(int(duration_s * rate_hz) + 1):
+        t = i / rate_hz
+        p = path(t) + rng.normal(0.0, noise_m, 3)
+        out.append((t, world.update(t, p, None if device is None else device(out))))
+    return out
+
+
+def test_subject_switches_between_objects_with_hysteresis():
+    w = World(load_scene("panel"), predictor="none")
+    # the finger sweeps at 8 mm height from the left wall over the shelf to key_a, then to key_b
+    pts = [(0.17, y, -0.142) for y in np.linspace(-0.05, 0.04, 40)] + [(x, 0.04, -0.142) for x in np.linspace(0.17, 0.23, 30)]
+    names = [w.update(i * 0.02, p).object_name for i, p in enumerate(pts)]
+    assert names[0] == "left_wall" and names[-1] == "key_b"
+    order = [n for i, n in enumerate(names) if i == 0 or n != names[i - 1]]
+    assert order == ["left_wall", "shelf", "key_a", "key_b"]
+    # hysteresis: jittering around the midpoint between the keys does not flap
+    w2 = World(load_scene("panel"), predictor="none", hysteresis_m=0.005)
+    w2.update(0.0, [0.17, 0.04, -0.142])
+    flips = [w2.update(0.02 * (i + 1), [0.200 + (0.002 if i % 2 else -0.002), 0.04, -0.142]).object_name for i in range(20)]
+    assert set(flips) == {"key_a"}
+
+
+def test_no_switch_while_in_contact_and_imminent_notice():
+    w = World(load_scene("panel"), predictor="none", imminent_m=0.03)
+    far = w.update(0.0, [0.17, -0.05, -0.12])
+    assert far.object_name == "left_wall" and not far.imminent and not far.in_contact
+    near = w.update(0.1, [0.17, -0.04, -0.135])
+    assert near.imminent and near.depth == pytest.approx(-0.015)
+    touch = w.update(0.2, [0.17, -0.04, -0.151])
+    assert touch.in_contact and touch.depth == pytest.approx(0.001)
+    # pressed into the left wall at its edge next to the shelf: still the wall, in contact
+    side = w.update(0.3, [0.17, -0.0225, -0.152])
+    assert side.object_name == "left_wall" and side.in_contact
+
+
+def test_target_is_held_ahead_at_the_meeting_point():
+    scene = load_scene("wall")
+    start, end = np.array([0.16, -0.03, -0.09]), np.array([0.22, 0.02, -0.15])
+
+    def path(t):  # straight line, minimum-jerk timing, 0.6 s to contact, then rest
+        s = np.clip(t / 0.6, 0, 1)
+        return start + (end - start) * (10 * s**3 - 15 * s**4 + 6 * s**5)
+
+    for pred in ("kalman", "cv"):
+        res = _run(World(scene, predictor=pred, handover="hold"), path, noise_m=0.0001, duration_s=0.6)
+        # from 0.3 s to 0.15 s before contact the target is already near the meeting point,
+        # while the finger's own projection is still far from it
+        err = [np.linalg.norm(it.X_d - end) for t, it in res if 0.3 <= t <= 0.45]
+        assert np.median(err) < 0.002 and max(err) < 0.004, (pred, err)
+        assert all(np.linalg.norm(end - [*path(t)[:2], -0.15]) > 0.004 for t, it in res if 0.3 <= t <= 0.45)
+        last = res[-1][1]
+        assert np.linalg.norm(last.X_d - end) < 0.002
+    # without prediction the target is only the finger's projection, far from the meeting point
+    res = _run(World(scene, predictor="none"), path, duration_s=0.6)
+    assert np.linalg.norm([it for t, it in res if t >= 0.3][0].X_d - end) > 0.01
+
+
+def test_button_target_is_its_centre_and_law_is_the_subjects():
+    w = World(load_scene("panel"), predictor="none")
+    it = w.update(0.0, [0.232, 0.045, -0.140])
+    assert it.object_name == "key_b" and np.allclose(it.X_d, [0.230, 0.040, -0.150])
+    F = w.force_robot(np.array([0.23, 0.04, -0.151]), np.zeros(3))
+    assert F[2] == pytest.approx(500.0 * 0.001)
+
+
+def test_device_goes_over_the_shelf_never_through_it():
+    scene = load_scene("panel")
+    w = World(scene, predictor="none")
+    shelf = scene.object("shelf")
+    w.update(0.0, [0.20, -0.045, -0.140])
+    dev = np.array([0.20, -0.045, -0.150])  # resting on the left wall
+    targets = []
+    for i in range(1, 200):  # the finger jumps to key_a; the device moves 2 mm per update towards X_d
+        it = w.update(i * 0.02, [0.17, 0.04, -0.140], dev)
+        step = it.X_d - dev
+        nxt = dev + step * min(1.0, 0.002 / max(np.linalg.norm(step), 1e-12))
+        assert not shelf.segment_hits(dev, nxt, top_clearance=-0.0005), (i, dev, nxt)
+        targets.append(it.via)
+        dev = nxt
+    assert any(targets) and not targets[-1]
+    assert np.allclose(dev, [0.17, 0.04, -0.15], atol=1e-6)
+    assert dev[2] == pytest.approx(-0.15)
+
+
+def test_predictors_follow_constant_velocity_and_missed_frames():
+    v = np.array([0.1, -0.05, -0.2])
+    rng = np.random.default_rng(3)
+    kf, fd, last = KalmanPredictor(meas_std_m=0.0002), FiniteDifference(), LastSample()
+    for i in range(40):
+        t = i / 30
+        z = np.array([0.2, 0.0, -0.05]) + v * t + rng.normal(0, 0.0002, 3)
+        for pr in (kf, fd, last):
+            pr.observe(t, None if (pr is kf and i == 30) else z)
+    t_next = 40 / 30 + 0.03
+    truth = np.array([0.2, 0.0, -0.05]) + v * t_next
+    p_k, v_k = kf.state_at(t_next)
+    assert np.linalg.norm(v_k - v) < 0.05 and np.linalg.norm(p_k - truth) < 0.003
+    assert np.linalg.norm(last.state_at(t_next)[0] - truth) > 0.005
+    c, tau = contact_point([0.2, 0.0, -0.10], [0.1, 0.0, -0.5], [0, 0, 1], -0.15, horizon_s=0.5)
+    assert tau == pytest.approx(0.1) and np.allclose(c, [0.21, 0.0, -0.15])
+    c, tau = contact_point([0.2, 0.0, -0.10], [0.1, 0.0, 0.5], [0, 0, 1], -0.15, horizon_s=0.5)
+    assert tau is None and np.allclose(c, [0.2, 0.0, -0.15])

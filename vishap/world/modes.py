@@ -1,0 +1,126 @@
+"""Database of interaction modes (VisHap §2.2, "Scene Configuration").
+
+"A button allows a click, and a hard wall only allows a sliding along the surface. For each object
+we only need specify the index into a database that describes its interaction property."  The
+database is ``modes.yaml`` beside this file; a scene object refers to a mode by name. Each mode
+names the object kinds it fits, what the finger may do, how the device target behaves in contact
+(``follow`` the finger's projection, or stay at the object's ``centre``) and the force law with
+its parameters (Fig. 5; HAPTEX §II-B for fabric).
+"""
+from __future__ import annotations
+
+import os
+from functools import lru_cache
+from pathlib import Path
+from typing import Annotated, Literal, Union
+
+from pydantic import Field
+
+from vishap._core.config import Schema
+from vishap._core.errors import ConfigError
+
+__all__ = [
+    "WallSpringLaw",
+    "ButtonClickLaw",
+    "FabricFrictionLaw",
+    "Mode",
+    "ModeDatabase",
+    "DEFAULT_MODES",
+    "load_modes",
+    "default_modes",
+]
+
+DEFAULT_MODES = Path(__file__).with_name("modes.yaml")
+
+Positive = Annotated[float, Field(gt=0)]
+NonNegative = Annotated[float, Field(ge=0)]
+
+
+class WallSpringLaw(Schema):
+    """Fig. 5 left: a linear spring in the depth below the plane (N/m), plus normal damping."""
+
+    kind: Literal["wall_spring"]
+    stiffness_n_m: Positive
+    damping_n_s_m: NonNegative = 0.0
+
+
+class ButtonClickLaw(Schema):
+    """Fig. 5 right: resistance spring to the trigger depth, low stiffness after the click, hard bottom."""
+
+    kind: Literal["button_click"]
+    k_resist_n_m: Positive
+    k_click_n_m: Positive
+    k_bottom_n_m: Positive
+    transition_m: Annotated[float, Field(gt=0, le=0.002)] = 0.0002
+    damping_n_s_m: NonNegative = 0.0
+
+
+class FabricFrictionLaw(Schema):
+    """HAPTEX §II-B: penalty force on penetration and stick/slip friction (μ from the scene's surface)."""
+
+    kind: Literal["fabric_friction"]
+    k_penalty_n_m: Positive
+    damping_n_s_m: NonNegative = 0.0
+    k_tangential_n_m: Positive
+    damping_tangential_n_s_m: NonNegative = 0.0
+
+
+Law = Annotated[Union[WallSpringLaw, ButtonClickLaw, FabricFrictionLaw], Field(discriminator="kind")]
+
+_LAW_KINDS = {"wall_spring": {"wall"}, "button_click": {"button"}, "fabric_friction": {"fabric"}}
+
+
+class Mode(Schema):
+    """One entry of the database."""
+
+    description: str = ""
+    kinds: list[Literal["wall", "button", "fabric"]] = Field(min_length=1)
+    allows: list[Literal["slide", "press", "click", "stroke", "texture"]] = Field(min_length=1)
+    target: Literal["follow", "centre"]
+    law: Law
+
+
+class ModeDatabase(Schema):
+    modes: dict[str, Mode] = Field(min_length=1)
+
+    def get(self, name: str, *, kind: str | None = None, file=None, field: str | None = None) -> Mode:
+        """The mode called ``name``; a :class:`ConfigError` naming ``file``/``field`` if it is unknown
+        or does not fit an object of ``kind``."""
+        if name not in self.modes:
+            raise ConfigError(
+                f"unknown interaction mode {name!r}; expected one of {sorted(self.modes)}", file=file, field=field
+            )
+        mode = self.modes[name]
+        if kind is not None and kind not in mode.kinds:
+            raise ConfigError(
+                f"mode {name!r} is for {mode.kinds} objects, not a {kind!r}", file=file, field=field
+            )
+        return mode
+
+
+def load_modes(path: str | os.PathLike = DEFAULT_MODES) -> ModeDatabase:
+    """Read and validate a mode database file (YAML or TOML: a mapping name -> mode)."""
+    from vishap._core.config import read_mapping, validate
+
+    try:
+        db = validate(ModeDatabase, {"modes": read_mapping(path)}, file=path)
+    except ConfigError as exc:
+        if exc.field is None or not exc.field.startswith("modes."):
+            raise
+        from vishap.world.scene import _without_tags
+
+        stripped = ConfigError(exc.reason, file=path, field=exc.field[len("modes."):])
+        raise _without_tags(stripped, tuple(_LAW_KINDS)) from None
+    for name, mode in db.modes.items():
+        bad = set(mode.kinds) - _LAW_KINDS[mode.law.kind]
+        if bad:
+            raise ConfigError(
+                f"law {mode.law.kind!r} cannot render {sorted(bad)} objects", file=path, field=f"{name}.kinds"
+            )
+    return db
+
+
+@lru_cache(maxsize=1)
+def default_modes() -> ModeDatabase:
+    """The database shipped with vishap (``vishap/world/modes.yaml``)."""
+    return load_modes(DEFAULT_MODES)

@@ -1,0 +1,167 @@
+"""Finger motion prediction for the encountered-type meeting (VisHap §2.1 tracking, §2.2 world).
+
+The world must hold the device *ahead* of the finger: the finger is seen at 20–60 Hz with tens of
+milliseconds of latency, so its position "now" and where it will touch a surface are predicted.
+VisHap tracks the fingertip with a constant-velocity Kalman filter; :class:`KalmanPredictor` is that
+filter in 3-D (filterpy style: public ``x``, ``P``, ``Q``, ``R``; ``predict(dt)`` / ``update(z)``,
+``update(None)`` for a missed frame). Two simpler peers share its interface for comparison:
+:class:`LastSample` (no prediction) and :class:`FiniteDifference` (velocity from the last two samples).
+
+Every predictor offers ``observe(t, p_robot)`` and ``state_at(t) -> (p, v)`` (extrapolated to
+time ``t``, so latency is compensated by asking for the present), and :func:`contact_point`
+intersects the predicted straight-line motion with a surface.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "make_predictor", "contact_point", "PREDICTORS"]
+
+
+class LastSample:
+    """No prediction: the last measured position, zero velocity."""
+
+    name = "none"
+
+    def __init__(self):
+        self.t: float | None = None
+        self.p = np.zeros(3)
+
+    def reset(self) -> None:
+        self.t = None
+
+    @property
+    def ready(self) -> bool:
+        return self.t is not None
+
+    def observe(self, t: float, p_robot) -> None:
+        self.t, self.p = float(t), np.asarray(p_robot, dtype=float).copy()
+
+    def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        return self.p.copy(), np.zeros(3)
+
+
+class FiniteDifference(LastSample):
+    """Constant velocity from the last two samples (no filtering)."""
+
+    name = "cv"
+
+    def __init__(self):
+        super().__init__()
+        self.v = np.zeros(3)
+
+    def observe(self, t: float, p_robot) -> None:
+        p = np.asarray(p_robot, dtype=float)
+        if self.t is not None and t > self.t:
+            self.v = (p - self.p) / (t - self.t)
+        self.t, self.p = float(t), p.copy()
+
+    def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        dt = 0.0 if self.t is None else t - self.t
+        return self.p + self.v * dt, self.v.copy()
+
+
+class KalmanPredictor:
+    """Constant-velocity Kalman filter on (p, v) in 3-D, white-acceleration process noise.
+
+    Parameters
+    ----------
+    accel_std_m_s2:
+        Standard deviation of the unmodelled acceleration (m/s²); larger follows turns faster.
+    meas_std_m:
+        Standard deviation of one fingertip measurement (m).
+    """
+
+    name = "kalman"
+
+    def __init__(self, *, accel_std_m_s2: float = 2.0, meas_std_m: float = 0.0008):
+        self.q = float(accel_std_m_s2) ** 2
+        self.R = np.eye(3) * float(meas_std_m) ** 2
+        self.H = np.hstack([np.eye(3), np.zeros((3, 3))])
+        self.reset()
+
+    def reset(self) -> None:
+        self.x = np.zeros(6)
+        self.P = np.diag([1.0] * 3 + [1.0] * 3)
+        self.t: float | None = None
+        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
+
+    @property
+    def ready(self) -> bool:
+        return self.t is not None
+
+    def _FQ(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        F = np.eye(6)
+        F[:3, 3:] = np.eye(3) * dt
+        q = self.q
+        Q = np.zeros((6, 6))
+        Q[:3, :3] = np.eye(3) * q * dt**4 / 4
+        Q[:3, 3:] = Q[3:, :3] = np.eye(3) * q * dt**3 / 2
+        Q[3:, 3:] = np.eye(3) * q * dt**2
+        return F, Q
+
+    def predict(self, dt: float) -> None:
+        F, Q = self._FQ(dt)
+        self.x = F @ self.x
+        self.P = F @ self.P @ F.T + Q
+        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
+
+    def update(self, z) -> None:
+        """Fuse one measurement ``z`` (3,); ``None`` for a missed frame (keeps the prior)."""
+        if z is None:
+            return
+        y = np.asarray(z, dtype=float) - self.H @ self.x
+        S = self.H @ self.P @ self.H.T + self.R
+        K = np.linalg.solve(S, self.H @ self.P).T
+        self.x = self.x + K @ y
+        self.P = (np.eye(6) - K @ self.H) @ self.P
+
+    def observe(self, t: float, p_robot) -> None:
+        p = None if p_robot is None else np.asarray(p_robot, dtype=float)
+        if self.t is None:
+            if p is None:
+                return
+            self.x[:3], self.x[3:] = p, 0.0
+            self.P = np.diag([self.R[0, 0]] * 3 + [0.25] * 3)
+            self.t = float(t)
+            return
+        if t > self.t:
+            self.predict(t - self.t)
+            self.t = float(t)
+        self.update(p)
+
+    def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        dt = 0.0 if self.t is None else t - self.t
+        return self.x[:3] + self.x[3:] * dt, self.x[3:].copy()
+
+
+PREDICTORS = {"none": LastSample, "cv": FiniteDifference, "kalman": KalmanPredictor}
+
+
+def make_predictor(name: str, **kwargs):
+    """A predictor by name: ``none``, ``cv`` or ``kalman``."""
+    try:
+        return PREDICTORS[name](**kwargs)
+    except KeyError:
+        raise ValueError(f"unknown predictor {name!r}; expected one of {sorted(PREDICTORS)}") from None
+
+
+def contact_point(p_robot, v_robot, normal, offset_m: float, *, horizon_s: float, min_speed_m_s: float = 0.02):
+    """Where the straight-line motion ``p + v·τ`` meets the plane ``n·x = d`` within ``horizon_s``.
+
+    Returns ``(point on the plane, τ)``; when the finger is not approaching (normal speed below
+    ``min_speed_m_s``) or would arrive later than the horizon, the motion is followed for at most
+    the horizon and projected along the normal (τ = None).
+    """
+    p = np.asarray(p_robot, dtype=float)
+    v = np.asarray(v_robot, dtype=float)
+    n = np.asarray(normal, dtype=float)
+    h = float(n @ p - offset_m)
+    closing = -float(n @ v)
+    tau = None
+    if closing > min_speed_m_s and h > 0:
+        tau = h / closing
+        if tau > horizon_s:
+            tau = None
+    q = p + v * (tau if tau is not None else (horizon_s if closing > min_speed_m_s else 0.0))
+    return q - n * (float(n @ q) - offset_m), tau

@@ -1,0 +1,199 @@
+"""The world update (VisHap §2.2 "Interaction with Objects", §2.3 control target X_d).
+
+At vision rate, :meth:`World.update` takes the fingertip in the robot frame and
+
+1. predicts its present position and velocity (latency-compensated, :mod:`~vishap.world.predictor`);
+2. computes its distance to every object and picks the nearest as the interaction subject, with
+   hysteresis (a rival must be ``hysteresis_m`` nearer) and never while the finger is in contact;
+3. raises the "imminent interaction" notice below ``imminent_m``;
+4. produces the device target ``X_d``: the projection of the fingertip onto the subject's surface,
+   held *ahead* of the finger at the point where its predicted motion meets the surface
+   (``handover``: ``hold`` freezes that point once the finger is within ``hold_m``; ``blend``
+   slides it towards the finger's present projection; ``track`` uses the present projection).
+   A button's target is its top centre (VisHap §2.3). In contact, a ``follow`` mode tracks the
+   finger's projection (sliding);
+5. routes the device around objects: if the straight path from the device to ``X_d`` would cut
+   through any object's solid, ``X_d`` becomes a way-point above the obstacles.
+
+At servo rate (1 kHz), :meth:`World.force_robot` evaluates the subject's force law only
+(:mod:`~vishap.world.force_laws`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vishap._core.check import as_array
+from vishap.world.force_laws import DEFAULT_MAX_FORCE_N, make_law
+from vishap.world.predictor import contact_point, make_predictor
+from vishap.world.scene import Scene, SceneObject
+
+__all__ = ["Interaction", "World", "HANDOVERS"]
+
+HANDOVERS = ("hold", "blend", "track")
+_UP = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass
+class Interaction:
+    """What the world tells the device and the tactile layer after one finger sample.
+
+    ``depth`` is the fingertip's depth under the subject's surface (m; negative above it);
+    ``normal`` the subject's outward unit normal (robot frame); ``X_d`` the device target (robot
+    frame, m); ``via`` is True when ``X_d`` is a detour way-point rather than the contact target.
+    """
+
+    t: float
+    object_name: str | None
+    mode: str | None
+    X_d: np.ndarray
+    depth: float
+    imminent: bool
+    in_contact: bool
+    normal: np.ndarray
+    distances: dict[str, float] = field(default_factory=dict)
+    predicted_contact: np.ndarray | None = None
+    time_to_contact_s: float | None = None
+    via: bool = False
+
+
+class World:
+    """The scene, the finger predictor, the current subject and its force law.
+
+    Parameters (keyword-only): ``predictor`` (``kalman``, ``cv``, ``none`` or an object with
+    ``observe``/``state_at``), ``handover`` (``hold``, ``blend``, ``track``), ``latency_s`` (age of a
+    finger sample when it arrives: the prediction is made for ``t + latency_s``), ``imminent_m``,
+    ``hysteresis_m``, ``hold_m``, ``horizon_s`` (furthest look-ahead), ``contact_margin_m``,
+    ``path_margin_m`` and ``clearance_m`` for routing, ``max_force_n`` for the laws.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        *,
+        predictor="kalman",
+        handover: str = "hold",
+        latency_s: float = 0.0,
+        imminent_m: float = 0.03,
+        hysteresis_m: float = 0.005,
+        hold_m: float = 0.004,
+        horizon_s: float = 0.4,
+        contact_margin_m: float = 0.0,
+        path_margin_m: float = 0.003,
+        clearance_m: float = 0.01,
+        max_force_n: float = DEFAULT_MAX_FORCE_N,
+    ):
+        if handover not in HANDOVERS:
+            raise ValueError(f"handover must be one of {HANDOVERS}, got {handover!r}")
+        self.scene = scene
+        self.predictor = make_predictor(predictor) if isinstance(predictor, str) else predictor
+        self.handover = handover
+        self.latency_s = float(latency_s)
+        self.imminent_m, self.hysteresis_m, self.hold_m = float(imminent_m), float(hysteresis_m), float(hold_m)
+        self.horizon_s, self.contact_margin_m = float(horizon_s), float(contact_margin_m)
+        self.path_margin_m, self.clearance_m = float(path_margin_m), float(clearance_m)
+        self.laws = {o.name: make_law(o, max_force_n=max_force_n) for o in scene.objects}
+        tops = [o.centre + o.R[:, :2] @ (o.half * np.array(s)) for o in scene.objects for s in
+                ((1, 1), (1, -1), (-1, 1), (-1, -1))]
+        self.z_safe = float(max(p[2] for p in tops)) + self.clearance_m
+        self.reset()
+
+    def reset(self) -> None:
+        self.subject: SceneObject | None = None
+        self.law = None
+        self.held: np.ndarray | None = None
+        self.X_d: np.ndarray | None = None
+        if hasattr(self.predictor, "reset"):
+            self.predictor.reset()
+
+    # -- vision rate -------------------------------------------------------------------------------
+    def update(self, t: float, p_robot_finger, p_robot_device=None) -> Interaction:
+        """Fuse one fingertip sample (robot frame, m; ``None`` when vision lost it) taken at ``t``."""
+        if p_robot_finger is not None:
+            p_robot_finger = as_array(p_robot_finger, (3,), "p_robot_finger")
+        self.predictor.observe(t, p_robot_finger)
+        if not self.predictor.ready:
+            X = self.X_d if self.X_d is not None else self.scene.objects[0].centre.copy()
+            return Interaction(t, None, None, X.copy(), float("-inf"), False, False, _UP.copy())
+        p, v = self.predictor.state_at(t + self.latency_s)
+        distances = {o.name: o.signed_distance(p) for o in self.scene.objects}
+        subj = self._choose(distances)
+        h = subj.height(p)
+        depth = -h
+        in_contact = depth >= -self.contact_margin_m and subj.inside_extent(p, self.contact_margin_m)
+        imminent = distances[subj.name] < self.imminent_m
+        c, tau = contact_point(p, v, subj.normal, subj.offset, horizon_s=self.horizon_s)
+        c = subj.project(c)
+        X = self._target(subj, p, c, h, in_contact)
+        via = False
+        start = p_robot_device if p_robot_device is not None else self.X_d
+        if start is not None:
+            routed = self._route(np.asarray(start, dtype=float), X, subj)
+            via = routed is not X
+            X = routed
+        self.X_d = X
+        return Interaction(t, subj.name, subj.mode_name, X.copy(), depth, imminent, in_contact,
+                           subj.normal.copy(), distances, c, tau, via)
+
+    def _choose(self, distances: dict[str, float]) -> SceneObject:
+        best = min(self.scene.objects, key=lambda o: distances[o.name])
+        cur = self.subject
+        if cur is None:
+            return self._set_subject(best)
+        if best is cur or distances[cur.name] <= self.contact_margin_m:
+            return cur  # never switch while touching the current subject
+        if distances[best.name] < distances[cur.name] - self.hysteresis_m:
+            return self._set_subject(best)
+        return cur
+
+    def _set_subject(self, obj: SceneObject) -> SceneObject:
+        if obj is not self.subject:
+            self.subject, self.held = obj, None
+            if self.law is not None:
+                self.law.reset()
+            self.law = self.laws[obj.name]
+        return obj
+
+    def _target(self, subj: SceneObject, p, c, h: float, in_contact: bool) -> np.ndarray:
+        if subj.mode.target == "centre":
+            return subj.centre.copy()
+        proj = subj.project(p)
+        if in_contact:
+            self.held = None
+            return proj
+        if self.handover == "track":
+            return proj
+        if self.handover == "blend":
+            w = np.clip((h - self.hold_m) / max(self.imminent_m - self.hold_m, 1e-9), 0.0, 1.0)
+            return w * c + (1.0 - w) * proj
+        if h < self.hold_m and h > -self.contact_margin_m:  # hold the meeting point, do not chase noise
+            if self.held is None:
+                self.held = c
+            return self.held.copy()
+        self.held = None
+        return c
+
+    def _route(self, start: np.ndarray, X: np.ndarray, subj: SceneObject) -> np.ndarray:
+        """``X`` if the straight path from ``start`` is clear, else a way-point above the obstacles."""
+        if self._clear(start, X):
+            return X
+        above = X.copy()
+        above[2] = max(self.z_safe, X[2])
+        if self._clear(start, above):
+            return above
+        up = start.copy()
+        up[2] = max(self.z_safe, start[2])
+        return up
+
+    def _clear(self, a, b) -> bool:
+        return not any(
+            o.segment_hits(a, b, margin=self.path_margin_m, top_clearance=-0.0005) for o in self.scene.objects
+        )
+
+    # -- servo rate --------------------------------------------------------------------------------
+    def force_robot(self, p_robot_device, v_robot_device) -> np.ndarray:
+        """The current subject's force law at the device contact point (robot frame, N)."""
+        if self.law is None:
+            return np.zeros(3)
+        return self.law.force_robot(p_robot_device, v_robot_device)
