@@ -1,0 +1,151 @@
+"""Plant and controller: compensation holds the arm, limits, ramp-up, refusal of bad gains and inputs."""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from vishap._core.errors import ConfigError, DeviceError
+from vishap.robot import kinematics as kin
+from vishap.robot.controller import Controller, Gains
+from vishap.robot.mjcf import PassiveObject
+from vishap.robot.plant import MujocoPlant
+from vishap.robot.params import DEFAULT
+
+
+def test_plant_reads_what_mujoco_has():
+    plant = MujocoPlant(q0=[0.2, 0.1, -0.3])
+    s = plant.read()
+    np.testing.assert_allclose(s.q, [0.2, 0.1, -0.3])
+    np.testing.assert_allclose(s.p_robot, plant.tip_position(), atol=1e-12)
+    assert s.t == 0.0
+    plant.step()
+    assert plant.time == pytest.approx(1e-3)
+
+
+def test_gravity_compensation_holds_still_across_workspace():
+    """Gravity compensation only (Kp = Kv = 0): the arm must not drift anywhere in the box."""
+    obj = PassiveObject(mass_kg=0.012)
+    for p in [(0.12, -0.05, -0.18), (0.28, 0.05, -0.06), (0.2, 0.0, -0.12), (0.15, 0.06, -0.05), (0.29, -0.06, -0.19)]:
+        plant = MujocoPlant(passive_object=obj, q0=kin.ik(np.array(p)))
+        ctrl = Controller(plant.params, Gains(kp=0.0, kv=0.0, ramp_s=0.0), limits=plant.limits)
+        for i in range(300):
+            q1, q2, q3, w1, w2, w3 = plant.read_scalar()
+            plant.command_torque_scalar(*ctrl.compute(i * 1e-3, q1, q2, q3, w1, w2, w3, *p))
+            plant.step()
+        drift = np.linalg.norm(plant.read().p_robot - p)
+        assert drift < 1e-9, (p, drift)
+
+
+def test_without_compensation_the_arm_falls():
+    plant = MujocoPlant(passive_object=PassiveObject(mass_kg=0.012), q0=kin.ik(np.array([0.2, 0.0, -0.1])))
+    for _ in range(300):
+        plant.step()
+    assert np.linalg.norm(plant.read().p_robot - [0.2, 0.0, -0.1]) > 5e-3
+
+
+def test_pd_reaches_target_and_ramps_up():
+    plant = MujocoPlant(passive_object=PassiveObject(mass_kg=0.012))
+    ctrl = Controller(plant.params, Gains(), limits=plant.limits)
+    target = (0.22, 0.03, -0.12)
+    for i in range(1500):
+        q1, q2, q3, w1, w2, w3 = plant.read_scalar()
+        plant.command_torque_scalar(*ctrl.compute(i * 1e-3, q1, q2, q3, w1, w2, w3, *target))
+        plant.step()
+    assert np.linalg.norm(plant.read().p_robot - target) < 2e-4
+
+
+def test_force_ramps_up_linearly():
+    ramped = Controller(gains=Gains(ramp_s=0.5))
+    full = Controller(gains=Gains(ramp_s=0.0))
+    args = (0.1, 0.2, -0.1, 0.0, 0.0, 0.0, 0.25, 0.02, -0.1)
+    for t, frac in [(0.0, 0.0), (0.1, 0.2), (0.25, 0.5), (0.5, 1.0), (2.0, 1.0)]:
+        ramped.compute(t, *args)
+        full.compute(t, *args)
+        np.testing.assert_allclose(ramped.F_pd, np.multiply(frac, full.F_pd), atol=1e-12)
+        np.testing.assert_allclose(ramped.F_gc, full.F_gc)  # gravity compensation is never ramped
+
+
+def test_target_outside_workspace_is_clamped_and_reported():
+    ctrl = Controller()
+    ctrl.compute(0.0, 0, 0, 0, 0, 0, 0, 0.5, 0.0, 0.3)
+    assert ctrl.target_clamped and ctrl.n_target_clamped == 1
+    assert ctrl.target == (0.30, 0.0, -0.04)
+    ctrl.compute(0.001, 0, 0, 0, 0, 0, 0, 0.2, 0.0, -0.1)
+    assert not ctrl.target_clamped and ctrl.n_target_clamped == 1
+
+
+def test_saturation_and_continuous_limit():
+    ctrl = Controller(gains=Gains(kp=5000.0, kv=0.0, ramp_s=0.0))
+    F = []
+    for i in range(20000):
+        ctrl.compute(i * 1e-3, 0, 0, 0, 0, 0, 0, 0.30, 0.065, -0.04)
+        F.append(np.linalg.norm(ctrl.F_cmd))
+    F = np.array(F)
+    assert F.max() <= DEFAULT.peak_force_n + 1e-12
+    assert F[5] == pytest.approx(DEFAULT.peak_force_n)
+    assert F[-1] == pytest.approx(DEFAULT.continuous_force_n)  # motors hot: continuous force only
+
+
+@pytest.mark.parametrize("bad", [dict(kp=-1.0), dict(kv=float("nan")), dict(a=0.0), dict(a=float("inf")), dict(ramp_s=-0.1), dict(kp="400")])
+def test_bad_gains_refused(bad):
+    with pytest.raises(ConfigError, match="gains"):
+        Gains(**bad)
+
+
+def test_device_refuses_nonfinite_and_excessive_torque():
+    plant = MujocoPlant()
+    with pytest.raises(DeviceError, match="motor 2"):
+        plant.command_torque([0.0, float("nan"), 0.0])
+    with pytest.raises(DeviceError, match="motor 1"):
+        plant.command_torque([1e3, 0.0, 0.0])
+    with pytest.raises(DeviceError):
+        plant.command_force([np.inf, 0, 0])
+
+
+def test_lambda_gain_is_rotated_into_the_robot_frame():
+    from vishap._core.pose import rot_x
+
+    ctrl = Controller()
+    R = rot_x(np.pi / 2)  # object z along robot -y
+    L = ctrl.set_lambda([1.0, 1.0, 10.0], R)
+    np.testing.assert_allclose(L, np.diag([1.0, 10.0, 1.0]), atol=1e-12)
+
+
+def test_delay_ticks_delays_commands():
+    plant = MujocoPlant(delay_ticks=2)
+    seen = []
+    for tau in (0.1, 0.2, 0.3, 0.4):
+        plant.command_torque([tau, 0.0, 0.0])
+        seen.append(float(plant.data.ctrl[0]))
+    assert seen == [0.0, 0.0, 0.1, 0.2]
+
+
+anything = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.floats(-1e6, 1e6),
+    st.sampled_from([0.0, -0.0, 1e308, -1e308, 5e-324]),
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    q=st.lists(anything, min_size=6, max_size=6),
+    target=st.lists(anything, min_size=6, max_size=6),
+    extra=st.lists(anything, min_size=3, max_size=3),
+    t=st.floats(0.0, 10.0),
+    lam=st.lists(st.floats(0.0, 1e4), min_size=3, max_size=3),
+)
+def test_never_nan_or_over_limit(q, target, extra, t, lam):
+    """Whatever arrives, the command is finite, |F| ≤ peak and every |τ| ≤ the motor bound."""
+    ctrl = Controller(gains=Gains(kp=2000.0, kv=50.0, ramp_s=0.0))
+    ctrl.set_lambda(lam)
+    lim = ctrl.limits.max_torque_nm
+    for k in range(3):
+        tau = ctrl.compute(t + k * 1e-3, *q, *target, *extra)
+        assert all(math.isfinite(v) and abs(v) <= lim for v in tau)
+        F = ctrl.F_cmd
+        assert all(math.isfinite(v) for v in F)
+        assert math.sqrt(sum(v * v for v in F)) <= DEFAULT.peak_force_n * (1 + 1e-12)
+        if ctrl.target is not None:
+            assert kin.in_workspace(ctrl.target)

@@ -1,0 +1,70 @@
+"""The servo cycle and the X_d gap policies."""
+import numpy as np
+import pytest
+
+from vishap._core.errors import ConfigError
+from vishap.robot.controller import Controller, Gains
+from vishap.robot.mjcf import PassiveObject
+from vishap.robot.plant import MujocoPlant
+from vishap.robot.servo import ServoLoop, TargetShaper
+
+
+def test_policies_between_samples():
+    sh = {p: TargetShaper(p) for p in ("hold", "interpolate", "extrapolate")}
+    for s in sh.values():
+        s.push(0.00, 0.0, 0.0, 0.0)
+        s.push(0.05, 0.05, 0.0, 0.0)  # 1 m/s along x, 20 Hz
+    t = 0.05 + 0.02
+    assert sh["hold"].at(t)[:4] == (0.05, 0.0, 0.0, 0.0)
+    np.testing.assert_allclose(sh["interpolate"].at(t)[:4], (0.02, 0.0, 0.0, 1.0))
+    np.testing.assert_allclose(sh["extrapolate"].at(t)[:4], (0.07, 0.0, 0.0, 1.0))
+    # after one interval interpolation has arrived; extrapolation stops at the horizon (1.5 intervals)
+    np.testing.assert_allclose(sh["interpolate"].at(0.2)[:4], (0.05, 0.0, 0.0, 0.0))
+    np.testing.assert_allclose(sh["extrapolate"].at(0.2)[:4], (0.05 + 0.075, 0.0, 0.0, 0.0))
+
+
+def test_new_sample_detection():
+    s = TargetShaper("hold")
+    s.offer(0.0, (0.1, 0.0, 0.0))
+    s.offer(0.001, (0.1, 0.0, 0.0))
+    assert s.n_samples == 1
+    s.offer(0.002, (0.1, 0.0, 0.0), t_sample=0.002)
+    assert s.n_samples == 2
+
+
+def test_unknown_policy_refused():
+    with pytest.raises(ConfigError, match="policy"):
+        TargetShaper("blend")
+
+
+@pytest.mark.parametrize("policy", ["hold", "interpolate", "extrapolate"])
+def test_servo_follows_vision_rate_target(policy):
+    plant = MujocoPlant(passive_object=PassiveObject())
+    servo = ServoLoop(plant, Controller(plant.params, Gains(), limits=plant.limits), policy=policy)
+    X = np.array([0.215, 0.0, -0.17])
+    for i in range(2000):
+        t = i * 1e-3
+        if i % 33 == 0:  # 30 Hz vision
+            X = np.array([0.215, 0.03 * min(t, 1.0), -0.17 + 0.05 * min(t, 1.0)])
+        servo.tick(t, X)
+    assert np.linalg.norm(plant.read().p_robot - X) < 1e-3
+
+
+def test_holds_position_before_any_target_and_callback_force():
+    plant = MujocoPlant(passive_object=PassiveObject(), q0=[0.1, 0.2, 0.1])
+    seen = []
+
+    def law(t, p, v):
+        seen.append(p.copy())
+        return np.array([0.0, 0.0, 0.5]) if t > 0.6 else None
+
+    servo = ServoLoop(plant, Controller(plant.params, Gains(), limits=plant.limits), force_callback=law)
+    p0 = plant.read().p_robot
+    for i in range(600):
+        servo.tick(i * 1e-3)
+    assert np.linalg.norm(plant.read().p_robot - p0) < 1e-6
+    np.testing.assert_allclose(seen[0], p0)
+    for i in range(600, 1600):
+        servo.tick(i * 1e-3)
+    # a constant 0.5 N push against Kp = 400 N/m moves it ≈ 1.25 mm up
+    assert plant.read().p_robot[2] - p0[2] == pytest.approx(0.5 / 400.0, rel=0.05)

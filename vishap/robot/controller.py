@@ -1,0 +1,271 @@
+"""Error-space PD control with gravity compensation and an object gain (VisHap §2.3, Eq. 4–9).
+
+Per servo tick, in the robot frame:
+
+* ``e = X_d − X``, ``ė = Ẋ_d − Ẋ`` (Eq. 4), each low-pass filtered by Eq. 5, ``y = a·x/(s + a)``,
+  discretised with backward Euler at the servo period ``T``: ``y_t = (aT·x + y_{t−1}) / (1 + aT)``
+  (the paper's ``(a·x + y_{t−1}) / (1 + a)`` with ``a`` in units of the period);
+* the impedance force ``f = Kp·e_f + Kv·ė_f``;
+* ``F = F_GC + Λ_gain·f`` (Eq. 8), with ``F_GC = J⁻ᵀ τ_g`` from Eq. 6–7 and
+  ``Λ_robot = R_robot_obj · Λ_obj · R_robot_objᵀ`` (Eq. 9; the paper writes the same similarity
+  transform with ``R`` mapping the device frame to the object frame);
+* the world's force law (``extra``) is added to ``Λ f``; that part ramps up linearly over ``ramp_s``
+  after start (gravity compensation is on from the first tick);
+* ``|F|`` is saturated at the peak force, or at the continuous force while a first-order estimate of
+  ``|F|²`` (motor heating, time constant ``thermal_tau_s``) exceeds the continuous force squared;
+* ``τ = Jᵀ F`` (Eq. 6).
+
+Targets outside the reachable box are clamped to its nearest point and counted; a non-finite
+target keeps the last good one, a non-finite external force is ignored, a non-finite joint reading
+commands zero torque — each counted. Nothing non-finite or beyond the limits is ever returned.
+The hot path (:meth:`Controller.compute`) works on floats with :mod:`math` only.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vishap._core.errors import ConfigError
+from vishap.robot.device import DeviceLimits
+from vishap.robot.params import DEFAULT, PhantomParams
+
+__all__ = ["Gains", "Controller"]
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Controller gains: ``kp`` (N/m), ``kv`` (N·s/m), Eq. 5 filter constant ``a`` (rad/s), ramp-up (s)."""
+
+    kp: float = 400.0
+    kv: float = 16.0
+    a: float = 500.0
+    ramp_s: float = 0.5
+
+    def __post_init__(self):
+        for name, lo, strict in (("kp", 0.0, False), ("kv", 0.0, False), ("a", 0.0, True), ("ramp_s", 0.0, False)):
+            v = getattr(self, name)
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+                raise ConfigError(f"expected a finite number, got {v!r}", field=f"gains.{name}")
+            if v < lo or (strict and v == lo):
+                raise ConfigError(f"expected {'>' if strict else '≥'} {lo}, got {v!r}", field=f"gains.{name}")
+
+
+class Controller:
+    """Filtered error-space PD + gravity compensation + Λ gain + saturation + ramp-up.
+
+    State (public, inspectable): filtered errors ``ef``/``edf`` (tuples), the last commanded force
+    ``F_cmd``, its parts ``F_gc`` and ``F_pd`` (= ramp·(Λ f + extra)), the heating estimate
+    ``heat`` (N²) and counters ``n_target_clamped``, ``n_saturated``, ``n_rejected``, ``n_faults``.
+    """
+
+    def __init__(self, params: PhantomParams = DEFAULT, gains: Gains = Gains(), *, limits: DeviceLimits | None = None):
+        if not isinstance(gains, Gains):
+            raise ConfigError(f"expected a Gains record, got {type(gains).__name__}", field="gains")
+        self.params = params
+        self.limits = limits if limits is not None else DeviceLimits.from_params(params)
+        self.dt = params.dt
+        self._l1, self._l2 = params.l1, params.l2
+        self._wmin = tuple(float(v) for v in self.limits.workspace_min)
+        self._wmax = tuple(float(v) for v in self.limits.workspace_max)
+        self._peak = float(self.limits.peak_force_n)
+        self._cont = float(self.limits.continuous_force_n)
+        self._heat_k = self.dt / params.thermal_tau_s
+        self.set_gains(gains)
+        self.set_gravity(params)
+        self.set_lambda(None)
+        self.reset()
+
+    # -- configuration ---------------------------------------------------------------------------
+    def set_gains(self, gains: Gains) -> None:
+        self.gains = gains
+        self._kp, self._kv = float(gains.kp), float(gains.kv)
+        aT = gains.a * self.dt
+        self._k = aT / (1.0 + aT)  # y += k (x − y)  ⇔  y_t = (aT x + y_{t−1}) / (1 + aT)
+        self._ramp = float(gains.ramp_s)
+
+    def set_gravity(self, params: PhantomParams) -> None:
+        """Use Eq. 7 with ``params`` (e.g. ``m_a`` adjusted or ``m_tip`` set for an attached object)."""
+        self.gravity_params = params
+        self._c2, self._c3 = params.gravity_coefficients
+
+    def set_lambda(self, lambda_obj=None, R_robot_obj=None) -> np.ndarray:
+        """Set Λ_gain (Eq. 8–9) from the object's gain (diagonal (3,) or (3, 3)) and its rotation.
+
+        ``None`` restores the identity (free motion). Returns Λ in the robot frame.
+        If the device limits carry ``max_stiffness_n_m``, the largest eigenvalue is clipped so that
+        ``λ·Kp`` stays below it (and ``lambda_clipped`` is set).
+        """
+        if lambda_obj is None:
+            L = np.eye(3)
+        else:
+            L = np.asarray(lambda_obj, dtype=np.float64)
+            L = np.diag(L) if L.shape == (3,) else L
+            if L.shape != (3, 3) or not np.all(np.isfinite(L)):
+                raise ConfigError(f"expected a finite diagonal (3,) or matrix (3, 3), got {lambda_obj!r}", field="lambda_gain")
+            if R_robot_obj is not None:
+                R = np.asarray(R_robot_obj, dtype=np.float64).reshape(3, 3)
+                L = R @ L @ R.T
+        self.lambda_clipped = False
+        ms = self.limits.max_stiffness_n_m
+        if ms is not None and self._kp > 0:
+            lam_max = float(np.max(np.abs(np.linalg.eigvals(L))))
+            if lam_max * self._kp > ms:
+                L = L * (ms / (lam_max * self._kp))
+                self.lambda_clipped = True
+        self.lambda_robot = L
+        self._L = tuple(float(v) for v in L.ravel())
+        self._L_identity = bool(np.array_equal(L, np.eye(3)))
+        return L
+
+    def reset(self, t_start: float | None = None) -> None:
+        """Forget filter state and restart the force ramp (at the next tick, or at ``t_start``)."""
+        self.ef = (0.0, 0.0, 0.0)
+        self.edf = (0.0, 0.0, 0.0)
+        self._fresh = True
+        self._t0 = t_start
+        self.heat = 0.0
+        self.F_cmd = (0.0, 0.0, 0.0)
+        self.F_gc = (0.0, 0.0, 0.0)
+        self.F_pd = (0.0, 0.0, 0.0)
+        self.p = (0.0, 0.0, 0.0)
+        self.target = None
+        self.target_clamped = False
+        self.saturated = False
+        self.n_target_clamped = 0
+        self.n_saturated = 0
+        self.n_rejected = 0
+        self.n_faults = 0
+
+    # -- the 1 kHz hot path ------------------------------------------------------------------------
+    def compute(self, t, q1, q2, q3, w1, w2, w3, xd, yd, zd, vxd=0.0, vyd=0.0, vzd=0.0, fx=0.0, fy=0.0, fz=0.0):
+        """Motor torques (τ1, τ2, τ3) in N·m for joint state, target (m, m/s) and extra force (N)."""
+        isf = math.isfinite
+        if not isf(q1 + q2 + q3 + w1 + w2 + w3):
+            self.n_faults += 1
+            self.F_cmd = (0.0, 0.0, 0.0)
+            return 0.0, 0.0, 0.0
+        if not isf(xd + yd + zd + vxd + vyd + vzd):
+            self.n_rejected += 1
+            if self.target is None:
+                xd, yd, zd = self.p
+            else:
+                xd, yd, zd = self.target
+            vxd = vyd = vzd = 0.0
+        if not isf(fx + fy + fz):
+            self.n_rejected += 1
+            fx = fy = fz = 0.0
+        # workspace clamp of the target (nearest point of the box)
+        lo, hi = self._wmin, self._wmax
+        clamped = False
+        if xd < lo[0]:
+            xd, clamped = lo[0], True
+        elif xd > hi[0]:
+            xd, clamped = hi[0], True
+        if yd < lo[1]:
+            yd, clamped = lo[1], True
+        elif yd > hi[1]:
+            yd, clamped = hi[1], True
+        if zd < lo[2]:
+            zd, clamped = lo[2], True
+        elif zd > hi[2]:
+            zd, clamped = hi[2], True
+        if clamped:
+            self.n_target_clamped += 1
+        self.target_clamped = clamped
+        self.target = (xd, yd, zd)
+
+        # kinematics (Eq. 6): p, J, v = J q̇
+        l1, l2 = self._l1, self._l2
+        s1, c1 = math.sin(q1), math.cos(q1)
+        s2, c2 = math.sin(q2), math.cos(q2)
+        s3, c3 = math.sin(q3), math.cos(q3)
+        r = l1 * c2 + l2 * s3
+        ja, jb, jc, jd = -l1 * s2, l2 * c3, l1 * c2, l2 * s3  # planar block
+        px, py, pz = r * c1, r * s1, l1 * s2 - l2 * c3
+        self.p = (px, py, pz)
+        vr = ja * w2 + jb * w3  # radial velocity
+        vt = r * w1  # tangential
+        vx, vy, vz = vr * c1 - vt * s1, vr * s1 + vt * c1, jc * w2 + jd * w3
+
+        # Eq. 4–5: filtered errors
+        ex, ey, ez = xd - px, yd - py, zd - pz
+        edx, edy, edz = vxd - vx, vyd - vy, vzd - vz
+        if self._fresh:
+            self._fresh = False
+            efx, efy, efz = ex, ey, ez
+            edfx, edfy, edfz = edx, edy, edz
+            if self._t0 is None:
+                self._t0 = t
+        else:
+            k = self._k
+            efx, efy, efz = self.ef
+            edfx, edfy, edfz = self.edf
+            efx += k * (ex - efx)
+            efy += k * (ey - efy)
+            efz += k * (ez - efz)
+            edfx += k * (edx - edfx)
+            edfy += k * (edy - edfy)
+            edfz += k * (edz - edfz)
+        self.ef = (efx, efy, efz)
+        self.edf = (edfx, edfy, edfz)
+        kp, kv = self._kp, self._kv
+        fpx, fpy, fpz = kp * efx + kv * edfx, kp * efy + kv * edfy, kp * efz + kv * edfz
+        # Eq. 8–9: Λ f
+        if not self._L_identity:
+            L = self._L
+            fpx, fpy, fpz = (
+                L[0] * fpx + L[1] * fpy + L[2] * fpz,
+                L[3] * fpx + L[4] * fpy + L[5] * fpz,
+                L[6] * fpx + L[7] * fpy + L[8] * fpz,
+            )
+        # ramp-up of everything but gravity compensation
+        el = t - self._t0
+        s = 1.0 if el >= self._ramp else (el / self._ramp if el > 0.0 else 0.0)
+        Fx, Fy, Fz = s * (fpx + fx), s * (fpy + fy), s * (fpz + fz)
+        self.F_pd = (Fx, Fy, Fz)
+        # Eq. 6–7: F_GC = J⁻ᵀ τ_g (τ_g1 = 0, so no tangential part)
+        det2 = ja * jd - jb * jc
+        if det2 > 1e-9 or det2 < -1e-9:
+            tg2, tg3 = self._c2 * c2, self._c3 * s3
+            fr = (jd * tg2 - jc * tg3) / det2
+            gx, gy, gz = fr * c1, fr * s1, (ja * tg3 - jb * tg2) / det2
+        else:
+            gx = gy = gz = 0.0
+        self.F_gc = (gx, gy, gz)
+        Fx += gx
+        Fy += gy
+        Fz += gz
+        # limits: peak force, continuous force while hot
+        n2 = Fx * Fx + Fy * Fy + Fz * Fz
+        flim = self._cont if self.heat > self._cont * self._cont else self._peak
+        if n2 > flim * flim:
+            sc = flim / math.sqrt(n2)
+            Fx, Fy, Fz = Fx * sc, Fy * sc, Fz * sc
+            n2 = flim * flim
+            self.saturated = True
+            self.n_saturated += 1
+        else:
+            self.saturated = False
+        self.heat += self._heat_k * (n2 - self.heat)  # heating from the force actually commanded
+        # Eq. 6: τ = Jᵀ F  (J = Rz(θ1)·[[0, ja, jb], [r, 0, 0], [0, jc, jd]])
+        Fr = Fx * c1 + Fy * s1
+        Ft = -Fx * s1 + Fy * c1
+        tau1, tau2, tau3 = r * Ft, ja * Fr + jc * Fz, jb * Fr + jd * Fz
+        if not isf(tau1 + tau2 + tau3):  # only reachable through overflow
+            self.n_faults += 1
+            self.F_cmd = (0.0, 0.0, 0.0)
+            return 0.0, 0.0, 0.0
+        self.F_cmd = (Fx, Fy, Fz)
+        return tau1, tau2, tau3
+
+    # -- convenience -------------------------------------------------------------------------------
+    def command(self, t: float, q, qd, X_d, Xd_dot=(0.0, 0.0, 0.0), extra_force_robot=None) -> np.ndarray:
+        """Array wrapper of :meth:`compute`: returns τ (3,) in N·m."""
+        q = np.asarray(q, dtype=np.float64).reshape(3)
+        qd = np.asarray(qd, dtype=np.float64).reshape(3)
+        X = np.asarray(X_d, dtype=np.float64).reshape(3)
+        V = np.asarray(Xd_dot, dtype=np.float64).reshape(3)
+        E = np.zeros(3) if extra_force_robot is None else np.asarray(extra_force_robot, dtype=np.float64).reshape(3)
+        return np.array(self.compute(float(t), *q.tolist(), *qd.tolist(), *X.tolist(), *V.tolist(), *E.tolist()))

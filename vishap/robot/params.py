@@ -1,0 +1,124 @@
+"""PHANToM Premium 1.0 constants: the one source of truth for kinematics, gravity and the MuJoCo model.
+
+Masses and lengths are Cavusoglu, Feygin & Tendick's identified parameters ("A critical study of
+the mechanical and electrical properties of the PHANToM haptic interface", 2002), as cited by
+VisHap §2.3 ("Gravity Compensation", Eq. 7). Device limits are the manufacturer's figures quoted
+in VisHap §1 (workspace) and SensAble's data sheet (peak 8.5 N, continuous ≈ 1.4 N).
+
+Joint angles (radians), robot frame (metres, z up, x from the base towards the user, origin at
+the joint-1/joint-2 axes):
+
+* ``q[0]`` = θ1, base yaw about +z;
+* ``q[1]`` = θ2, elevation of the upper arm (link l1) above the horizontal;
+* ``q[2]`` = θ3, absolute angle of the forearm (link l2) from the downward vertical, positive
+  towards +x (the PHANToM's parallelogram drives θ3 directly, not relative to θ2).
+
+Home ``q = 0`` puts the tip at ``(l1, 0, -l2) = (0.215, 0, -0.170)``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+__all__ = ["PhantomParams", "DEFAULT", "WORKSPACE_MIN", "WORKSPACE_MAX", "GRAVITY"]
+
+GRAVITY = 9.81  # m/s², acts along -z of the robot frame
+
+#: Reachable box shared by every area (robot frame, metres).
+WORKSPACE_MIN = (0.10, -0.065, -0.20)
+WORKSPACE_MAX = (0.30, 0.065, -0.04)
+
+
+@dataclass(frozen=True)
+class PhantomParams:
+    """Geometry, masses and limits of a PHANToM Premium 1.0 (SI units)."""
+
+    # Cavusoglu et al. 2002, Table / §4 (gravity parameters)
+    m_a: float = 0.0202  # kg, link a (forearm, CoM at 0.5·l2 from the elbow)
+    m_c: float = 0.0249  # kg, link c (parallelogram coupler, CoM at 0.5·l1 along l1 and l3 along l2)
+    m_be: float = 0.2359  # kg, links b+e (upper arm with its counterweight, CoM at l5 along l1)
+    m_df: float = 0.1906  # kg, links d+f (θ3 drive crank with its counterweight, CoM at -l6 along l2)
+    l1: float = 0.215  # m, upper arm (shoulder to elbow)
+    l2: float = 0.170  # m, forearm (elbow to tip)
+    l3: float = 0.0325  # m, crank length of the parallelogram
+    l5: float = -0.0368  # m, CoM offset of links b+e along l1 (negative: behind the shoulder)
+    l6: float = 0.0527  # m, CoM offset of links d+f opposite to l2
+    g: float = GRAVITY  # m/s²
+    #: mass of the passive object carried at the tip (kg); VisHap §2.3 adjusts m_a for it
+    m_tip: float = 0.0
+
+    # joint limits (rad): θ1, θ2, θ3, and the parallelogram angle θ3 - θ2 (elbow, cannot fold)
+    # (the reachable box needs θ1 ±0.58, θ2 −0.31…0.65, θ3 −0.74…0.71, θ3 − θ2 −1.05…0.94)
+    q_min: tuple[float, float, float] = (-1.0, -0.50, -1.00)
+    q_max: tuple[float, float, float] = (1.0, 0.90, 1.00)
+    elbow_min: float = -1.30  # rad, θ3 - θ2 (−π/2 would stretch the arm straight: singular)
+    elbow_max: float = 1.20  # rad
+
+    # actuation limits (SensAble data sheet; VisHap §1)
+    peak_force_n: float = 8.5
+    continuous_force_n: float = 1.4
+    #: time constant (s) of the motor-heating estimate that enforces the continuous force
+    thermal_tau_s: float = 10.0
+    workspace_min: tuple[float, float, float] = WORKSPACE_MIN
+    workspace_max: tuple[float, float, float] = WORKSPACE_MAX
+
+    # dynamics of the simulated arm beyond Cavusoglu's gravity parameters (estimates)
+    joint_damping: float = 2.0e-4  # N·m·s/rad, capstan/bearing viscous friction per joint
+    armature: float = 1.0e-4  # kg·m², reflected rotor inertia per joint
+    turret_inertia: float = 2.0e-3  # kg·m², base yaw (θ1) inertia excluding the arm
+    servo_rate_hz: float = 1000.0
+
+    @property
+    def dt(self) -> float:
+        """Servo period (s)."""
+        return 1.0 / self.servo_rate_hz
+
+    @property
+    def gravity_coefficients(self) -> tuple[float, float]:
+        """Eq. 7 coefficients (N·m) of cos θ2 and sin θ3, including the tip object.
+
+        With ``m_tip = 0`` these are exactly g·(l1·m_a + 0.5·l1·m_c + m_be·l5) and
+        g·(0.5·m_a·l2 + m_c·l3 − m_df·l6).
+        """
+        c2 = self.g * (self.l1 * self.m_a + 0.5 * self.l1 * self.m_c + self.m_be * self.l5 + self.l1 * self.m_tip)
+        c3 = self.g * (0.5 * self.m_a * self.l2 + self.m_c * self.l3 - self.m_df * self.l6 + self.l2 * self.m_tip)
+        return c2, c3
+
+    def with_tip_mass(self, m_tip: float) -> PhantomParams:
+        """The same arm carrying a passive object of ``m_tip`` kg at the tip."""
+        return replace(self, m_tip=float(m_tip))
+
+    def with_adjusted_m_a(self, m_object: float) -> PhantomParams:
+        """VisHap's approximation: fold an attached object's mass into ``m_a`` (no separate tip mass)."""
+        return replace(self, m_a=self.m_a + float(m_object), m_tip=0.0)
+
+    @property
+    def lumped_bodies(self) -> dict[str, tuple[float, float]]:
+        """(mass kg, CoM offset m) of the two rigid bodies of the simulated tree.
+
+        A parallelogram is a closed chain; the MuJoCo model is a tree with the same first moments
+        (mass × CoM offset), hence exactly the same gravity torques as Eq. 7: the θ3 drive crank
+        (m_df) and the upper arm (m_be) become one body following θ2 with its CoM at ``d_u`` along
+        l1; the forearm (m_a) and the coupler (m_c) become one body following θ3 with its CoM at
+        ``d_f`` along l2 (from the elbow). Inertias of these bodies are estimates.
+        """
+        c2, c3 = self.gravity_coefficients
+        c2_0 = c2 / self.g - self.l1 * self.m_tip
+        c3_0 = c3 / self.g - self.l2 * self.m_tip
+        m_f = self.m_a + self.m_c
+        m_u = self.m_be + self.m_df
+        d_f = c3_0 / m_f
+        d_u = (c2_0 - m_f * self.l1) / m_u
+        return {"upper_arm": (m_u, d_u), "forearm": (m_f, d_f)}
+
+    @property
+    def q_min_array(self) -> np.ndarray:
+        return np.asarray(self.q_min, dtype=np.float64)
+
+    @property
+    def q_max_array(self) -> np.ndarray:
+        return np.asarray(self.q_max, dtype=np.float64)
+
+
+DEFAULT = PhantomParams()

@@ -1,0 +1,183 @@
+"""The 1 kHz servo cycle (VisHap §2.3; CHAI3D's read → compute → apply haptic cycle).
+
+``ServoLoop.tick(t, X_d, extra_force_robot=None)``: read the device → shape the target → control
+(Eq. 4–5, 8–9) with gravity compensation (Eq. 6–7) → limits → write the torques → step the device.
+
+X_d arrives at the vision rate (20–60 Hz) while the servo runs at 1 kHz. :class:`TargetShaper`
+bridges the gap with one of three policies (VisHap §2.3 names the problem and low-pass filters e
+and ė; the policy is measured by ``vishap bench tracking``):
+
+* ``hold`` — keep the latest sample, Ẋ_d = 0;
+* ``interpolate`` — move linearly from the previous sample to the latest over one sample interval
+  (smooth, one interval late);
+* ``extrapolate`` — continue from the latest sample with the velocity of the last two samples, for
+  at most ``horizon`` sample intervals, then hold.
+
+A new sample is recognised by a new ``t_sample`` when the caller gives one, otherwise by a change of
+value (a target that stops moving then stops being extrapolated after the horizon).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from vishap._core.errors import ConfigError
+from vishap.robot.controller import Controller
+from vishap.robot.device import Device
+from vishap.robot.kinematics import tip_state_scalar
+
+__all__ = ["POLICIES", "TargetShaper", "ServoLoop"]
+
+POLICIES = ("hold", "interpolate", "extrapolate")
+
+
+class TargetShaper:
+    """Turns X_d samples (vision rate) into a target position and velocity at any servo time."""
+
+    def __init__(self, policy: str = "hold", *, horizon: float = 1.5, max_speed_m_s: float = 2.0):
+        if policy not in POLICIES:
+            raise ConfigError(f"expected one of {POLICIES}, got {policy!r}", field="servo.policy")
+        self.policy = policy
+        self._mode = POLICIES.index(policy)
+        self.horizon = float(horizon)
+        self.max_speed = float(max_speed_m_s)
+        self.reset()
+
+    def reset(self) -> None:
+        self.n_samples = 0
+        self._t1 = None
+        self._x1 = None  # latest sample
+        self._x0 = None  # previous sample
+        self._v = (0.0, 0.0, 0.0)
+        self._dt = 0.0
+        self._last_raw = None
+        self._last_ts = None
+
+    def push(self, t: float, x: float, y: float, z: float) -> None:
+        """A new sample ``(x, y, z)`` (m) taken at time ``t`` (s)."""
+        self.n_samples += 1
+        if self._x1 is None:
+            self._x0 = self._x1 = (x, y, z)
+            self._t1 = t
+            self._v = (0.0, 0.0, 0.0)
+            self._dt = 0.0
+            return
+        dt = t - self._t1
+        self._x0 = self._x1
+        self._x1 = (x, y, z)
+        if dt > 1e-9:
+            x0 = self._x0
+            vx, vy, vz = (x - x0[0]) / dt, (y - x0[1]) / dt, (z - x0[2]) / dt
+            n2 = vx * vx + vy * vy + vz * vz
+            if n2 > self.max_speed * self.max_speed:  # a jump (re-acquisition), not motion
+                vx = vy = vz = 0.0
+            self._v = (vx, vy, vz)
+            self._dt = dt
+        else:
+            self._v = (0.0, 0.0, 0.0)
+            self._dt = 0.0
+        self._t1 = t
+
+    def offer(self, t: float, X_d, t_sample: float | None = None) -> None:
+        """Push ``X_d`` if it is a new sample (new ``t_sample``, or new value when none is given)."""
+        x, y, z = float(X_d[0]), float(X_d[1]), float(X_d[2])
+        if t_sample is not None:
+            if t_sample != self._last_ts:
+                self._last_ts = t_sample
+                self.push(t_sample, x, y, z)
+            return
+        raw = (x, y, z)
+        if raw != self._last_raw:
+            self._last_raw = raw
+            self.push(t, x, y, z)
+
+    def at(self, t: float):
+        """(x, y, z, vx, vy, vz) of the shaped target at time ``t``; None before the first sample."""
+        x1 = self._x1
+        if x1 is None:
+            return None
+        mode = self._mode
+        if mode == 0 or self._dt == 0.0:
+            return x1[0], x1[1], x1[2], 0.0, 0.0, 0.0
+        el = t - self._t1
+        vx, vy, vz = self._v
+        if mode == 1:  # interpolate from x0 to x1 over one interval
+            if el >= self._dt:
+                return x1[0], x1[1], x1[2], 0.0, 0.0, 0.0
+            if el < 0.0:
+                el = 0.0
+            x0 = self._x0
+            return x0[0] + vx * el, x0[1] + vy * el, x0[2] + vz * el, vx, vy, vz
+        # extrapolate
+        hz = self.horizon * self._dt
+        if el >= hz:
+            return x1[0] + vx * hz, x1[1] + vy * hz, x1[2] + vz * hz, 0.0, 0.0, 0.0
+        if el < 0.0:
+            el = 0.0
+        return x1[0] + vx * el, x1[1] + vy * el, x1[2] + vz * el, vx, vy, vz
+
+
+class ServoLoop:
+    """Device + controller + target shaping: one :meth:`tick` per servo period.
+
+    ``force_callback(t, p_robot, v_robot) -> F (3,) or None`` (optional) is the world's force law,
+    evaluated each tick after the read; ``extra_force_robot`` passed to :meth:`tick` is added to it.
+    Until the first target arrives the arm holds the position it had at the first tick.
+    """
+
+    def __init__(
+        self,
+        device: Device,
+        controller: Controller,
+        *,
+        policy: str = "hold",
+        horizon: float = 1.5,
+        force_callback: Callable | None = None,
+    ):
+        self.device = device
+        self.controller = controller
+        self.shaper = TargetShaper(policy, horizon=horizon)
+        self.force_callback = force_callback
+        self.n_ticks = 0
+        self._read = device.read_scalar
+        self._write = device.command_torque_scalar
+        self._step = device.step
+        self._compute = controller.compute
+        self._at = self.shaper.at
+        self._offer = self.shaper.offer
+        self._l1, self._l2 = device.params.l1, device.params.l2
+
+    @property
+    def policy(self) -> str:
+        return self.shaper.policy
+
+    def tick(self, t: float, X_d=None, extra_force_robot=None, *, t_sample: float | None = None) -> None:
+        """One servo cycle at time ``t`` (s) toward ``X_d`` (m, robot frame) plus an extra force (N)."""
+        q1, q2, q3, w1, w2, w3 = self._read()
+        if X_d is not None:
+            self._offer(t, X_d, t_sample)
+        tg = self._at(t)
+        if tg is None or self.force_callback is not None:
+            px, py, pz, vx, vy, vz = tip_state_scalar(q1, q2, q3, w1, w2, w3, self._l1, self._l2)
+            if tg is None:  # no target yet: hold where the arm is
+                self.shaper.push(t, px, py, pz)
+                tg = self._at(t)
+            if self.force_callback is not None:
+                F = self.force_callback(t, np.array((px, py, pz)), np.array((vx, vy, vz)))
+                if F is not None:
+                    extra_force_robot = F if extra_force_robot is None else np.asarray(F) + np.asarray(extra_force_robot)
+        if extra_force_robot is None:
+            tau = self._compute(t, q1, q2, q3, w1, w2, w3, *tg)
+        else:
+            tau = self._compute(
+                t, q1, q2, q3, w1, w2, w3, *tg,
+                float(extra_force_robot[0]), float(extra_force_robot[1]), float(extra_force_robot[2]),
+            )
+        self._write(*tau)
+        self._step()
+        self.n_ticks += 1
+
+    def state(self):
+        """The device's current :class:`DeviceState` (allocates; not for the hot path)."""
+        return self.device.read()
