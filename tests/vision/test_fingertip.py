@@ -1,0 +1,62 @@
+import numpy as np
+import pytest
+
+from vishap.vision.fingertip import FingertipConfig, detect_fingertip, fit_circle, square_ring_offsets
+
+
+def capsule(c, ang, R, shape=(160, 160), length=300.0, ss=4):
+    """Anti-aliased mask of a finger whose cap centre is ``c``, pointing away from ``ang``."""
+    H, W = shape
+    yy, xx = (np.mgrid[0:H * ss, 0:W * ss].astype(float) + 0.5) / ss - 0.5
+    d = np.array([np.cos(ang), np.sin(ang)])
+    rel = np.stack([xx - c[0], yy - c[1]], -1)
+    t = np.clip(rel @ d, 0, length)
+    q = rel - t[..., None] * d
+    cov = (np.hypot(q[..., 0], q[..., 1]) <= R).reshape(H, ss, W, ss).mean((1, 3))
+    return (cov >= 0.5).astype(np.uint8) * 255
+
+
+def test_ring_offsets_are_the_square_with_opposites():
+    off = square_ring_offsets(3)
+    assert len(off) == 24 and len({tuple(o) for o in off}) == 24
+    assert np.all(np.abs(off).max(axis=1) == 3)
+    assert np.array_equal(off[:12], -off[12:])
+
+
+def test_fit_circle_exact():
+    a = np.linspace(0, np.pi, 20)
+    c, r = fit_circle(np.column_stack([3 + 5 * np.cos(a), -2 + 5 * np.sin(a)]))
+    assert np.allclose(c, [3, -2]) and abs(r - 5) < 1e-9
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_detects_the_cap_centre_subpixel(seed):
+    rng = np.random.default_rng(seed)
+    c = rng.uniform(70, 90, 2)
+    ang = rng.uniform(-np.pi, np.pi)
+    R = rng.uniform(6.5, 10)
+    tip = detect_fingertip(capsule(c, ang, R), 0.62 * R)
+    assert tip.found
+    assert np.hypot(*(tip.uv - c)) < 0.5
+    assert np.dot(tip.direction, [np.cos(ang), np.sin(ang)]) > 0.9
+    assert abs(tip.cap_radius_px - R) < 0.7
+
+
+def test_middle_of_a_finger_and_a_blob_are_not_tips():
+    H = W = 120
+    bar = np.zeros((H, W), np.uint8)
+    bar[52:68, :] = 255  # a finger crossing the whole image: diagonal test rejects its middle
+    assert not detect_fingertip(bar, 5.0).found
+    yy, xx = np.mgrid[0:H, 0:W]
+    blob = ((xx - 60) ** 2 + (yy - 60) ** 2 <= 30 ** 2).astype(np.uint8) * 255
+    assert not detect_fingertip(blob, 5.0).found  # ring count too large everywhere
+    assert not detect_fingertip(np.zeros((H, W), np.uint8), 5.0).found
+
+
+def test_prior_breaks_ties_and_fill_ratio_variant():
+    m = np.maximum(capsule((40, 40), 0.0, 8), capsule((40, 110), 0.0, 8))
+    a = detect_fingertip(m, 5.0, prior_uv=(40, 40))
+    b = detect_fingertip(m, 5.0, prior_uv=(40, 110))
+    assert np.hypot(*(a.uv - (40, 40))) < 0.6 and np.hypot(*(b.uv - (40, 110))) < 0.6
+    loose = detect_fingertip(m, 5.0, FingertipConfig(fill_ratio=0.9), prior_uv=(40, 40))
+    assert loose.found and loose.n_candidates >= a.n_candidates

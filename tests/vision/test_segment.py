@@ -1,0 +1,89 @@
+import numpy as np
+import pytest
+
+from vishap import ShapeError, VisionError
+from vishap.vision.rig import StereoRig
+from vishap.vision.segment import (
+    SegmentConfig,
+    Segmenter,
+    histogram_intersection,
+    hue_bin_image,
+    snap_roi,
+    tile_histograms,
+)
+from vishap.vision.skin_model import SkinModel
+from vishap.vision.toy import ToyScene
+
+
+def test_tile_histograms_match_a_loop_over_tiles(rng):
+    b = rng.integers(0, 9, (23, 31)).astype(np.uint8)  # partial tiles at the right/bottom
+    hist = tile_histograms(b, 5, 9)
+    assert hist.shape == (5, 7, 9)
+    for ty in range(5):
+        for tx in range(7):
+            tile = b[ty * 5:(ty + 1) * 5, tx * 5:(tx + 1) * 5]
+            assert np.array_equal(hist[ty, tx], np.bincount(tile.ravel(), minlength=9))
+
+
+def test_histogram_intersection_is_eq1():
+    I = np.array([[3, 0, 2], [0, 0, 0]])
+    M = np.array([[1, 2, 2], [0, 0, 0]])
+    assert histogram_intersection(I, M).tolist() == [3 / 5, 1.0]
+
+
+def test_hue_bins_and_achromatic_bin():
+    hsv = np.array([[[0, 200, 200], [179, 200, 200], [90, 10, 200], [45, 200, 5]]], np.uint8)
+    b = hue_bin_image(hsv, SegmentConfig(bins=8))
+    assert b.tolist() == [[0, 7, 8, 8]]
+    assert hue_bin_image(hsv, SegmentConfig(bins=8, achromatic_bin=False)).tolist() == [[0, 7, 4, 2]]
+
+
+def test_snap_roi_widens_to_tiles_and_clips():
+    assert snap_roi((3, 7, 21, 22), 5, (640, 480)) == (0, 5, 25, 25)
+    assert snap_roi((-10, -3, 700, 500), 5, (640, 480)) == (0, 0, 640, 480)
+
+
+@pytest.fixture(scope="module")
+def toy():
+    rig = StereoRig.from_fov(320, 240, 60.0, 0.06)
+    scene = ToyScene(rig, seed=3)
+    bg = [scene.frame(0.0, (0, 0, 0.5), hand=False) for _ in range(5)]
+    fr = scene.frame(0.1, (0.01, 0.0, 0.5), light=0.85, device_cam=[[-0.1, 0.08, 0.6], [-0.02, 0.05, 0.6]])
+    skin = SkinModel.fit([fr.left], [fr.labels_left])
+    return bg, fr, skin
+
+
+def test_segmentation_of_a_toy_frame_matches_labels(toy):
+    bg, fr, skin = toy
+    seg = Segmenter(skin)
+    seg.learn([f.left for f in bg])
+    mask = seg.segment(fr.left) > 0
+    gt = fr.labels_left == 1
+    assert gt.sum() > 500
+    assert np.mean(mask == gt) > 0.995
+    assert np.mean(mask & ~gt) < 0.005  # the grey arm (moved in after learning) is not skin
+
+
+def test_roi_segmentation_equals_the_full_frame_inside(toy):
+    bg, fr, skin = toy
+    seg = Segmenter(skin, SegmentConfig(median=1))
+    seg.learn([f.left for f in bg])
+    full = seg.segment(fr.left)
+    roi = snap_roi((100, 60, 200, 170), 5, (320, 240))
+    part = seg.segment(fr.left, roi)
+    x0, y0, x1, y1 = roi
+    assert np.array_equal(part[5:-5, 5:-5], full[y0:y1, x0:x1][5:-5, 5:-5])  # away from dilation borders
+
+
+def test_segment_errors(toy):
+    bg, fr, skin = toy
+    seg = Segmenter(skin)
+    with pytest.raises(VisionError, match="before learn"):
+        seg.segment(fr.left)
+    seg.learn([bg[0].left])
+    with pytest.raises(ShapeError, match="expected size 320×240"):
+        seg.segment(np.zeros((10, 10, 3), np.uint8))
+    with pytest.raises(ShapeError, match="uint8 BGR"):
+        seg.segment(np.zeros((240, 320), np.uint8))
+    with pytest.raises(VisionError, match="odd"):
+        SegmentConfig(median=4)

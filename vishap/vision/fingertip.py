@@ -1,0 +1,234 @@
+"""Fingertip detection on a skin mask (VisHap §2.1, "Fingertip Detection and Tracking", eq. 2).
+
+The paper's pseudo-code, for every pixel p of the search region:
+
+1. p must be skin;
+2.–3. the expected fingertip radius is ``r = K / z`` (z: depth of the fingertip in the camera);
+4.–5. every pixel of the filled circle C of radius r centred at p must be skin (``S_filled``
+      equals the area of C);
+6.–7. on the square S centred at p with half-side ``r2 = r + δr`` the number of skin pixels
+      ``S_square`` must lie in ``[2·r2, 4·r2]`` (a finger of about the circle's width leaves the
+      square on one side; the square's perimeter holds ``8·r2`` pixels, so the limits are a quarter
+      and a half of it — the reading of Hardenberg & Bérard's test the paper cites);
+8.–9. the number N of diagonally opposite pixel pairs of S that are both skin must be ≤ 1 (a
+      point in the middle of a finger has skin on two opposite sides);
+10. p is a candidate with ``score = S_filled``; the best score wins (ties: nearest to the
+      predicted position, else nearest to the candidates' mean).
+
+The loop is vectorised: step 4–5 is one erosion by the disk (a pixel survives exactly when its
+whole circle is skin); steps 6–9 gather the square's pixels of the surviving candidates at once.
+
+Sub-pixel refinement (not in the paper): a least-squares circle through the mask's edge crossings
+(midpoints between a skin and a non-skin neighbour) of the cap in front of the winning candidate;
+its centre is the centre of the fingertip's hemispherical cap, the same 3-D point in both views,
+which is what stereo triangulates.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+__all__ = ["FingertipConfig", "Fingertip", "detect_fingertip", "square_ring_offsets", "fit_circle"]
+
+
+@dataclass(frozen=True)
+class FingertipConfig:
+    """Detector settings. ``r = K / z`` is computed by the caller (pipeline) from the rig and tracker."""
+
+    delta_r: float = 2.0          # δr of the paper (pixels): square half-side r2 = r + δr
+    ring_min: float = 2.0         # S_square ≥ ring_min·r2   (paper: 2)
+    ring_max: float = 4.0         # S_square ≤ ring_max·r2   (paper: 4)
+    max_diagonal_pairs: int = 1   # reject when N > this     (paper: 1)
+    fill_ratio: float = 1.0       # S_filled ≥ fill_ratio·area (paper: the whole circle)
+    refine: bool = True
+
+
+@dataclass
+class Fingertip:
+    """Result of one detection, in the coordinates of the mask given (add the ROI origin yourself)."""
+
+    found: bool
+    uv: np.ndarray | None = None          # refined cap centre (float pixels)
+    uv_pixel: np.ndarray | None = None    # the winning candidate pixel
+    direction: np.ndarray | None = None   # unit vector from the tip into the finger (image)
+    radius_px: float = 0.0                # r used
+    cap_radius_px: float = 0.0            # radius of the fitted cap circle (0 when not refined)
+    score: float = 0.0
+    n_candidates: int = 0
+
+
+@lru_cache(maxsize=64)
+def square_ring_offsets(r2: int) -> np.ndarray:
+    """(8·r2, 2) integer (dx, dy) offsets around a square of half-side r2, ordered so that
+    offset ``i + 4·r2`` is the diagonal opposite ``-offset[i]``."""
+    top = [(dx, -r2) for dx in range(-r2, r2)]
+    right = [(r2, dy) for dy in range(-r2, r2)]
+    half = np.array(top + right, dtype=np.intp)
+    return np.concatenate([half, -half])
+
+
+@lru_cache(maxsize=64)
+def _rect(r2: int) -> np.ndarray:
+    return np.ones((2 * r2 + 1, 2 * r2 + 1), np.uint8)
+
+
+@lru_cache(maxsize=64)
+def _disk(r: int) -> np.ndarray:
+    yy, xx = np.mgrid[-r: r + 1, -r: r + 1]
+    return ((xx * xx + yy * yy) <= r * r + 1e-9).astype(np.uint8)
+
+
+def detect_fingertip(mask: np.ndarray, r: float, config: FingertipConfig = FingertipConfig(),
+                     *, prior_uv=None) -> Fingertip:
+    """Find the fingertip in a binary skin ``mask`` (uint8, nonzero = skin) for radius ``r`` pixels."""
+    ri = max(1, int(round(r)))
+    r2 = max(ri + 1, int(round(r + config.delta_r)))
+    disk = _disk(ri)
+    area = int(disk.sum())
+    bx, by, bw, bh = cv2.boundingRect(mask)
+    if bw == 0:
+        return Fingertip(False, radius_px=float(r))
+    if bw * bh < mask.size // 2:  # work on the mask's bounding box (plus a margin) only
+        x0, y0 = max(0, bx - r2), max(0, by - r2)
+        x1, y1 = min(mask.shape[1], bx + bw + r2), min(mask.shape[0], by + bh + r2)
+        if (x0, y0) != (0, 0) or (x1, y1) != mask.shape[::-1]:
+            prior = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64) - (x0, y0)
+            tip = detect_fingertip(np.ascontiguousarray(mask[y0:y1, x0:x1]), r, config, prior_uv=prior)
+            if tip.found:
+                tip.uv = tip.uv + (x0, y0)
+                tip.uv_pixel = tip.uv_pixel + (x0, y0)
+            return tip
+    h, w = mask.shape
+    if h < 2 * r2 + 1 or w < 2 * r2 + 1:
+        return Fingertip(False, radius_px=float(r))
+    # steps 1, 4, 5: whole circle is skin; outside the mask counts as non-skin.
+    # Shortcut (exact): a pixel whose whole square of half-side r2 is skin has S_square = 8·r2,
+    # which step 7 rejects, so those pixels (a palm's interior) are dropped before gathering.
+    inner = cv2.erode(mask, _rect(r2), borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    if config.fill_ratio >= 1.0:
+        filled = cv2.erode(mask, disk, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+        cand = cv2.subtract(filled, inner)
+        scores = None
+    else:
+        cnt = cv2.filter2D((mask > 0).astype(np.float32), -1, disk.astype(np.float32),
+                           borderType=cv2.BORDER_CONSTANT)
+        ok = ((cnt >= config.fill_ratio * area - 1e-3) & (mask > 0) & (inner == 0)).view(np.uint8)
+        cand = ok
+        scores = cnt
+    cand[:r2] = 0
+    cand[h - r2:] = 0
+    cand[:, :r2] = 0
+    cand[:, w - r2:] = 0
+    pts = cv2.findNonZero(cand)
+    if pts is None:
+        return Fingertip(False, radius_px=float(r))
+    pts = pts.reshape(-1, 2)
+    xs = pts[:, 0].astype(np.intp)
+    ys = pts[:, 1].astype(np.intp)
+    if scores is not None:
+        scores = scores[ys, xs]
+    # steps 6–9 on the square ring
+    off = square_ring_offsets(r2)
+    ring = mask[ys[:, None] + off[None, :, 1], xs[:, None] + off[None, :, 0]] > 0  # (M, 8 r2)
+    s_square = ring.sum(axis=1)
+    n_half = 4 * r2
+    n_diag = (ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
+    keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2) & (n_diag <= config.max_diagonal_pairs)
+    if not np.any(keep):
+        return Fingertip(False, radius_px=float(r))
+    xs, ys, ring = xs[keep], ys[keep], ring[keep]
+    score = np.full(xs.size, float(area)) if scores is None else scores[keep].astype(np.float64)
+    # step 10: best score; ties broken by the prior (tracking) or the candidates' mean
+    best = np.flatnonzero(score >= score.max() - 1e-9)
+    if prior_uv is not None:
+        ref = np.asarray(prior_uv, dtype=np.float64)
+    else:
+        ref = np.array([xs[best].mean(), ys[best].mean()])
+    k = best[np.argmin((xs[best] - ref[0]) ** 2 + (ys[best] - ref[1]) ** 2)]
+    p = np.array([xs[k], ys[k]], dtype=np.float64)
+    d = (off[ring[k]].astype(np.float64)).mean(axis=0)
+    nd = np.hypot(*d)
+    d = d / nd if nd > 0 else np.array([0.0, 1.0])
+    tip = Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r), score=float(score[k]),
+                    n_candidates=int(xs.size))
+    if config.refine:
+        _refine(mask, tip, r2)
+    return tip
+
+
+def fit_circle(pts: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Algebraic (Kåsa) least-squares circle through (N, 2) points: (centre, radius) or None."""
+    n = len(pts)
+    if n < 5:
+        return None
+    m = pts.sum(axis=0) / n
+    q = pts - m
+    u, v = q[:, 0], q[:, 1]
+    b = u * u + v * v
+    A = np.array([[u @ u, u @ v, 0.0], [u @ v, v @ v, 0.0], [0.0, 0.0, float(n)]])
+    rhs = np.array([u @ b, v @ b, b.sum()])
+    try:
+        sol = np.linalg.solve(A, rhs)
+    except np.linalg.LinAlgError:
+        return None
+    c = sol[:2] / 2
+    rad2 = sol[2] + c @ c
+    if not np.isfinite(rad2) or rad2 <= 0:
+        return None
+    return c + m, float(np.sqrt(rad2))
+
+
+def _edge_points(win: np.ndarray) -> np.ndarray:
+    """Midpoints between horizontally/vertically adjacent pixels of different value (x, y)."""
+    b = win > 0
+    hy, hx = np.nonzero(b[:, 1:] != b[:, :-1])
+    vy, vx = np.nonzero(b[1:, :] != b[:-1, :])
+    return np.concatenate([np.column_stack([hx + 0.5, hy]), np.column_stack([vx, vy + 0.5])]).astype(np.float64)
+
+
+def _refine(mask: np.ndarray, tip: Fingertip, r2: int) -> None:
+    h, w = mask.shape
+    half = 2 * r2 + 2
+    x0, y0 = int(max(0, tip.uv_pixel[0] - half)), int(max(0, tip.uv_pixel[1] - half))
+    x1, y1 = int(min(w, tip.uv_pixel[0] + half + 1)), int(min(h, tip.uv_pixel[1] + half + 1))
+    pts = _edge_points(mask[y0:y1, x0:x1]) + (x0, y0)
+    if len(pts) < 5:
+        return
+    c = tip.uv_pixel.astype(np.float64)
+    d = tip.direction
+    for _ in range(2):
+        d = _finger_direction(mask, c, r2 + 2.0, d)
+        rel = pts - c
+        dist = np.hypot(rel[:, 0], rel[:, 1])
+        sel = (rel @ d <= 0.0) & (dist <= r2 + 2.5)  # the cap: in front of the centre
+        fit = fit_circle(pts[sel])
+        if fit is None:
+            return
+        c_new, rad = fit
+        if np.hypot(*(c_new - tip.uv_pixel)) > r2 + 1 or rad > 2 * r2 + 2:
+            return
+        c = c_new
+    tip.uv = c
+    tip.direction = _finger_direction(mask, c, r2 + 2.0, d)
+    tip.cap_radius_px = rad
+
+
+_ANGLES = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
+_UNIT = np.column_stack([np.cos(_ANGLES), np.sin(_ANGLES)])
+
+
+def _finger_direction(mask: np.ndarray, c: np.ndarray, rho: float, fallback: np.ndarray) -> np.ndarray:
+    """Unit vector from ``c`` into the finger: mean direction of the skin samples on a circle."""
+    h, w = mask.shape
+    q = np.rint(c + rho * _UNIT).astype(np.intp)
+    ok = (q[:, 0] >= 0) & (q[:, 0] < w) & (q[:, 1] >= 0) & (q[:, 1] < h)
+    skin = np.zeros(len(q), bool)
+    skin[ok] = mask[q[ok, 1], q[ok, 0]] > 0
+    if not skin.any():
+        return fallback
+    d = _UNIT[skin].sum(axis=0)
+    n = np.hypot(*d)
+    return d / n if n > 0 else fallback

@@ -1,0 +1,167 @@
+"""The vision pipeline of VisHap §2.1: stereo pair → skin masks → fingertips → tracked tips → ``p_cam``.
+
+Per frame and per camera: if the camera's tracker holds the finger, segment and search only a
+window around the Kalman prediction; otherwise segment and search the full frame (re-detection).
+The fingertip radius is ``r = K / z`` with ``K = f · tip_circle_m`` (focal length from the rig) and
+``z`` the tracked depth (``z_default`` before the first 3-D fix). The two tips are triangulated on
+the rectified images (epipolar and disparity checks, covariance).
+
+The background model is learned from the first ``learn_frames`` frames automatically, or
+explicitly with :meth:`VisionPipeline.learn_background`.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vishap._core.errors import ShapeError, VisionError
+from vishap.vision.fingertip import FingertipConfig, detect_fingertip
+from vishap.vision.rig import StereoRig
+from vishap.vision.segment import SegmentConfig, Segmenter, snap_roi
+from vishap.vision.skin_model import SkinModel
+from vishap.vision.stereo import StereoConfig, triangulate_tip
+from vishap.vision.track import TipTracker, TrackerConfig
+
+__all__ = ["PipelineConfig", "TipEstimate", "VisionPipeline"]
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    segment: SegmentConfig = field(default_factory=SegmentConfig)
+    fingertip: FingertipConfig = field(default_factory=FingertipConfig)
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    stereo: StereoConfig = field(default_factory=StereoConfig)
+    tip_circle_m: float = 0.005     # radius of the test circle at the fingertip: K = f · tip_circle_m
+    z_default_m: float = 0.6        # depth used for r = K/z before the first 3-D fix
+    z_search_m: tuple[float, ...] = (0.45, 0.8)  # other depths tried when a full-frame search fails
+    learn_frames: int = 10
+    tracking: bool = True           # False: always search the full frame
+
+
+@dataclass
+class TipEstimate:
+    t: float
+    found: bool
+    p_cam: np.ndarray | None = None
+    cov_cam: np.ndarray | None = None
+    uv_left: np.ndarray | None = None
+    uv_right: np.ndarray | None = None
+    confidence: float = 0.0
+    timings: dict = field(default_factory=dict)
+    mode: str = "full"              # "learning", "full" or "tracked" (left camera)
+    reason: str = ""
+
+
+class VisionPipeline:
+    """Fingertip in 3-D from stereo pairs; see the module docstring."""
+
+    def __init__(self, rig: StereoRig, *, skin_model: SkinModel | None = None, config: PipelineConfig | None = None):
+        self.rig = rig
+        self.config = config or PipelineConfig()
+        self.skin = skin_model if skin_model is not None else SkinModel.load()
+        self.segmenters = {s: Segmenter(self.skin, self.config.segment) for s in ("left", "right")}
+        self.trackers = {s: TipTracker(self.config.tracker) for s in ("left", "right")}
+        self.K = float(rig.K_left[0, 0]) * self.config.tip_circle_m
+        self._learn_buf: list = []
+        self._z: float | None = None
+        self._size = rig.image_size
+
+    # ------------------------------------------------------------------ background
+    @property
+    def learned(self) -> bool:
+        return self.segmenters["left"].learned
+
+    def learn_background(self, frames) -> None:
+        """Learn both background models from an iterable of StereoFrames (or (left, right) pairs)."""
+        lefts, rights = [], []
+        for f in frames:
+            l, r = (f.left, f.right) if hasattr(f, "left") else f
+            self._check(l, r)
+            lefts.append(l)
+            rights.append(r)
+        if not lefts:
+            raise VisionError("learn_background: no frames given")
+        self.segmenters["left"].learn(lefts)
+        self.segmenters["right"].learn(rights)
+
+    def reset_tracking(self) -> None:
+        self.trackers = {s: TipTracker(self.config.tracker) for s in ("left", "right")}
+        self._z = None
+
+    def _check(self, left, right) -> None:
+        for name, img in (("left", left), ("right", right)):
+            if not isinstance(img, np.ndarray) or img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+                raise ShapeError(f"{name} image: expected uint8 BGR (H, W, 3), got "
+                                 f"{getattr(img, 'dtype', type(img).__name__)} {getattr(img, 'shape', '')}")
+            if (img.shape[1], img.shape[0]) != tuple(self._size):
+                raise ShapeError(f"{name} image: expected {self._size[0]}×{self._size[1]} (the rig's size), "
+                                 f"got {img.shape[1]}×{img.shape[0]}")
+
+    # ------------------------------------------------------------------ per frame
+    def process(self, frame) -> TipEstimate:
+        """One StereoFrame (``t``, ``left``, ``right``) to a :class:`TipEstimate`."""
+        t0 = time.perf_counter()
+        t = float(frame.t)
+        self._check(frame.left, frame.right)
+        if not self.learned:
+            self._learn_buf.append((frame.left, frame.right))
+            if len(self._learn_buf) >= self.config.learn_frames:
+                self.learn_background(self._learn_buf)
+                self._learn_buf = []
+            return TipEstimate(t, False, mode="learning", reason="learning the background",
+                               timings={"total_ms": (time.perf_counter() - t0) * 1e3})
+        timings: dict[str, float] = {}
+        found = {}
+        modes = {}
+        for side, img in (("left", frame.left), ("right", frame.right)):
+            found[side], modes[side] = self._detect(side, img, t, timings)
+        t1 = time.perf_counter()
+        sp = triangulate_tip(self.rig, found["left"], found["right"], self.config.stereo)
+        if not sp.ok and found["left"] is not None and found["right"] is not None:
+            # inconsistent pair: drop the view that is further from its prediction
+            bad = max(("left", "right"), key=lambda s: self._surprise(s, found[s]))
+            found[bad] = None
+        for side in ("left", "right"):
+            self.trackers[side].update(t, found[side])
+        timings["stereo_ms"] = (time.perf_counter() - t1) * 1e3
+        timings["total_ms"] = (time.perf_counter() - t0) * 1e3
+        conf = min(self.trackers["left"].confidence, self.trackers["right"].confidence)
+        if sp.ok:
+            self._z = float(sp.p_cam[2])
+            return TipEstimate(t, True, sp.p_cam, sp.cov_cam, found["left"], found["right"], conf, timings, modes["left"])
+        return TipEstimate(t, False, None, None, found["left"], found["right"], conf, timings, modes["left"], sp.reason)
+
+    def _surprise(self, side: str, uv) -> float:
+        trk = self.trackers[side]
+        return trk.kf.mahalanobis(uv) if trk.tracking else 0.0
+
+    def _detect(self, side: str, image: np.ndarray, t: float, timings: dict):
+        cfg = self.config
+        trk = self.trackers[side]
+        seg = self.segmenters[side]
+        pred = trk.predict(t) if cfg.tracking else None
+        z = self._z if self._z is not None else cfg.z_default_m
+        r = self.K / z
+        roi = trk.window(self._size, extra_px=2 * (r + cfg.fingertip.delta_r)) if pred is not None else None
+        mode = "tracked" if roi is not None else "full"
+        if roi is None:
+            roi = (0, 0, self._size[0], self._size[1])
+        roi = snap_roi(roi, seg.config.tile, self._size)
+        ts = time.perf_counter()
+        mask = seg.segment(image, roi)
+        td = time.perf_counter()
+        prior = None if pred is None else pred - roi[:2]
+        zs = [z] if mode == "tracked" or self._z is not None else [z, *cfg.z_search_m]
+        tip = None
+        for zz in zs:
+            tip = detect_fingertip(mask, self.K / zz, cfg.fingertip, prior_uv=prior)
+            if tip.found:
+                break
+        te = time.perf_counter()
+        timings[f"segment_{side}_ms"] = (td - ts) * 1e3
+        timings[f"detect_{side}_ms"] = (te - td) * 1e3
+        if tip is None or not tip.found:
+            return None, mode
+        return tip.uv + roi[:2], mode

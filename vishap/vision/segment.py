@@ -1,0 +1,213 @@
+"""Appearance-based hand segmentation (VisHap §2.1, eq. 1).
+
+The image is split into small tiles (5×5 pixels by default); each tile gets a hue histogram (8 bins
+by default). The background model is the tile histograms of the average of the first frames. A
+live tile whose histogram intersection with its background histogram,
+``H(I, M) = sum_j min(I_j, M_j) / sum_j M_j``, falls below ``match_threshold`` is foreground. A
+pixel of a foreground tile is kept when it passes the skin model's hue test; a median filter then
+removes noise. The result is a binary skin mask (uint8, 0/255).
+
+Vectorised: the histograms of all tiles of an image (or of a tile-aligned region of interest) come
+from one ``np.bincount`` over ``tile_index * n_bins + bin``; no Python loop runs over tiles.
+
+One addition to the paper, as in :mod:`vishap.vision.skin_model`: achromatic pixels (low
+saturation or value), whose hue is undefined, fall into their own histogram bin, so a grey or
+black object does not read as random hues. ``dilate_tiles`` optionally lets the skin test also
+run in the tiles next to a foreground tile (a finger edge covering few pixels of a tile).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import cv2
+import numpy as np
+
+from vishap._core.errors import ShapeError, VisionError
+from vishap.vision.skin_model import SkinModel
+
+__all__ = [
+    "SegmentConfig",
+    "Segmenter",
+    "hue_bin_image",
+    "tile_histograms",
+    "histogram_intersection",
+    "snap_roi",
+]
+
+
+@dataclass(frozen=True)
+class SegmentConfig:
+    """Settings of the segmentation (defaults follow the paper where it gives a value)."""
+
+    tile: int = 5                   # tile side, pixels (paper: small tiles; issue: 5×5)
+    bins: int = 8                   # hue bins (issue: 8)
+    match_threshold: float = 0.6    # intersection below this → foreground tile
+    median: int = 5                 # median filter aperture (odd; 1 = off)
+    dilate_tiles: int = 1           # also test skin in tiles this many tiles away from a foreground tile
+    achromatic_bin: bool = True     # own bin for pixels whose hue is undefined
+    min_saturation: int = 40        # achromatic gate (0…255)
+    min_value: int = 30
+
+    def __post_init__(self) -> None:
+        if self.tile < 1 or self.bins < 1:
+            raise VisionError(f"tile and bins must be positive, got tile={self.tile} bins={self.bins}")
+        if self.median < 1 or self.median % 2 == 0:
+            raise VisionError(f"median aperture must be odd and positive, got {self.median}")
+        if not (0.0 < self.match_threshold <= 1.0):
+            raise VisionError(f"match_threshold must be in (0, 1], got {self.match_threshold}")
+
+
+def _bin_lut(bins: int) -> np.ndarray:
+    return np.minimum(np.arange(256) * bins // 180, bins - 1).astype(np.uint8)
+
+
+def hue_bin_image(hsv: np.ndarray, cfg: SegmentConfig, lut: np.ndarray | None = None) -> np.ndarray:
+    """Per-pixel histogram bin (uint8): hue bin 0…bins−1, or ``bins`` for achromatic pixels."""
+    lut = _bin_lut(cfg.bins) if lut is None else lut
+    b = cv2.LUT(np.ascontiguousarray(hsv[..., 0]), lut)
+    if cfg.achromatic_bin:
+        chroma = cv2.inRange(hsv, (0, cfg.min_saturation, cfg.min_value), (255, 255, 255))
+        b = cv2.min(cv2.max(b, cv2.bitwise_not(chroma)), cfg.bins)
+    return b
+
+
+def _n_bins(cfg: SegmentConfig) -> int:
+    return cfg.bins + (1 if cfg.achromatic_bin else 0)
+
+
+class _TileIndex:
+    """Cached ``tile_index * n_bins`` images for a given region shape."""
+
+    def __init__(self, tile: int, nb: int):
+        self.tile, self.nb, self._cache = tile, nb, {}
+
+    def get(self, h: int, w: int) -> tuple[np.ndarray, int, int]:
+        key = (h, w)
+        if key not in self._cache:
+            ty, tx = -(-h // self.tile), -(-w // self.tile)
+            rows = (np.arange(h) // self.tile)[:, None] * tx
+            cols = (np.arange(w) // self.tile)[None, :]
+            base = ((rows + cols) * self.nb).astype(np.intp)
+            self._cache[key] = (base, ty, tx)
+        return self._cache[key]
+
+
+def tile_histograms(bin_image: np.ndarray, tile: int, n_bins: int, _index: _TileIndex | None = None) -> np.ndarray:
+    """All tile histograms of a bin image: (tiles_y, tiles_x, n_bins) int64, from one bincount."""
+    h, w = bin_image.shape
+    base, ty, tx = (_index or _TileIndex(tile, n_bins)).get(h, w)
+    idx = base + bin_image
+    return np.bincount(idx.ravel(), minlength=ty * tx * n_bins).reshape(ty, tx, n_bins)
+
+
+def histogram_intersection(I: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """VisHap eq. (1) over the last axis: ``sum min(I, M) / sum M`` (1 where M is empty)."""
+    num = np.minimum(I, M).sum(axis=-1)
+    den = M.sum(axis=-1)
+    return np.where(den > 0, num / np.maximum(den, 1), 1.0)
+
+
+def snap_roi(roi, tile: int, size: tuple[int, int]) -> tuple[int, int, int, int]:
+    """Clip ``(x0, y0, x1, y1)`` to the image and widen it to whole tiles."""
+    w, h = size
+    x0, y0, x1, y1 = (int(np.floor(v)) for v in roi)
+    x0 = max(0, (x0 // tile) * tile)
+    y0 = max(0, (y0 // tile) * tile)
+    x1 = min(w, -(-x1 // tile) * tile)
+    y1 = min(h, -(-y1 // tile) * tile)
+    return x0, y0, max(x0, x1), max(y0, y1)
+
+
+@dataclass
+class Segmenter:
+    """Tile hue-histogram background model + skin model + median filter (one camera).
+
+    ``learn(frames)`` builds the background; ``segment(image, roi=None)`` returns the skin mask of the
+    image or of the tile-aligned region ``roi = (x0, y0, x1, y1)`` (the mask then has the ROI's size).
+    """
+
+    skin: SkinModel
+    config: SegmentConfig = field(default_factory=SegmentConfig)
+    background: np.ndarray | None = None    # (tiles_y, tiles_x, n_bins)
+    image_size: tuple[int, int] | None = None
+
+    def __post_init__(self) -> None:
+        c = self.config
+        # one achromatic gate for histograms and skin test
+        if (self.skin.min_saturation, self.skin.min_value) != (c.min_saturation, c.min_value):
+            self.config = c = replace(c, min_saturation=self.skin.min_saturation, min_value=self.skin.min_value)
+        self._lut = _bin_lut(c.bins)
+        self._index = _TileIndex(c.tile, _n_bins(c))
+        k = 2 * c.dilate_tiles + 1
+        self._dilate_kernel = np.ones((k, k), np.uint8) if c.dilate_tiles > 0 else None
+
+    @property
+    def learned(self) -> bool:
+        return self.background is not None
+
+    def learn(self, frames) -> None:
+        """Background model from the average of ``frames`` (BGR images of one camera)."""
+        acc = None
+        n = 0
+        for f in frames:
+            f = _check_image(f, self.image_size if acc is not None else None)
+            if acc is None:
+                acc = np.zeros(f.shape, np.float32)
+            cv2.accumulate(f, acc)
+            n += 1
+        if n == 0:
+            raise VisionError("learning the background needs at least one frame")
+        mean = cv2.convertScaleAbs(acc, alpha=1.0 / n)
+        self.image_size = (mean.shape[1], mean.shape[0])
+        self.background = self.histograms(mean)
+
+    def histograms(self, image: np.ndarray) -> np.ndarray:
+        hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
+        return tile_histograms(hue_bin_image(hsv, self.config, self._lut), self.config.tile, _n_bins(self.config), self._index)
+
+    def foreground_tiles(self, hsv: np.ndarray, roi: tuple[int, int, int, int]) -> np.ndarray:
+        """Boolean (tiles_y, tiles_x) of the ROI: True where the tile differs from the background."""
+        c = self.config
+        x0, y0, x1, y1 = roi
+        hist = tile_histograms(hue_bin_image(hsv, c, self._lut), c.tile, _n_bins(c), self._index)
+        M = self.background[y0 // c.tile: -(-y1 // c.tile), x0 // c.tile: -(-x1 // c.tile)]
+        return histogram_intersection(hist, M) < c.match_threshold
+
+    def segment(self, image: np.ndarray, roi=None) -> np.ndarray:
+        """Skin mask (uint8 0/255) of ``image`` or of the region ``roi`` (snapped to tiles)."""
+        if self.background is None:
+            raise VisionError("segment() before learn(): no background model")
+        image = _check_image(image, self.image_size)
+        c = self.config
+        if roi is None:
+            roi = (0, 0, self.image_size[0], self.image_size[1])
+        else:
+            roi = snap_roi(roi, c.tile, self.image_size)
+        x0, y0, x1, y1 = roi
+        if x1 <= x0 or y1 <= y0:
+            return np.zeros((max(0, y1 - y0), max(0, x1 - x0)), np.uint8)
+        hsv = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_BGR2HSV)
+        return self.segment_hsv(hsv, roi)
+
+    def segment_hsv(self, hsv: np.ndarray, roi: tuple[int, int, int, int]) -> np.ndarray:
+        c = self.config
+        fg = self.foreground_tiles(hsv, roi).view(np.uint8)
+        if self._dilate_kernel is not None:
+            fg = cv2.dilate(fg, self._dilate_kernel)
+        h, w = hsv.shape[:2]
+        ty, tx = fg.shape
+        fg_px = cv2.resize(fg, (tx * c.tile, ty * c.tile), interpolation=cv2.INTER_NEAREST)[:h, :w]
+        skin = self.skin.mask_hsv(hsv)
+        mask = cv2.bitwise_and(skin, skin, mask=fg_px)
+        if c.median > 1:
+            mask = cv2.medianBlur(mask, c.median)
+        return mask
+
+
+def _check_image(img, size) -> np.ndarray:
+    if not isinstance(img, np.ndarray) or img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        desc = f"{getattr(img, 'dtype', type(img).__name__)} {getattr(img, 'shape', '')}"
+        raise ShapeError(f"image: expected uint8 BGR of shape (H, W, 3), got {desc}")
+    if size is not None and (img.shape[1], img.shape[0]) != tuple(size):
+        raise ShapeError(f"image: expected size {size[0]}×{size[1]}, got {img.shape[1]}×{img.shape[0]}")
+    return img

@@ -1,0 +1,176 @@
+"""Constant-velocity Kalman tracking of the fingertip (VisHap §2.1, last paragraph).
+
+"We assume that the fingertip moves approximately at a constant velocity and in a straight line.
+We search for the fingertip in a small window around the predicted position."
+
+:class:`KalmanCV` is a plain constant-velocity Kalman filter in ``d`` dimensions (image: d = 2)
+whose state is public, as in filterpy: ``x`` (position then velocity), ``P``, ``F``, ``Q``, ``H``,
+``R``, the prior (``x_prior``, ``P_prior``) and the posterior (``x_post``, ``P_post``);
+``predict(dt)``; ``update(z)``; ``update(None)`` records a miss. :class:`TipTracker` adds the
+search window around the prediction, a confidence that drops with consecutive misses, and the
+"lost" state after which the caller re-detects over the full frame.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vishap._core.errors import ShapeError
+
+__all__ = ["KalmanCV", "TrackerConfig", "TipTracker"]
+
+
+class KalmanCV:
+    """Constant-velocity Kalman filter; white-noise acceleration of spectral density ``q``.
+
+    Parameters
+    ----------
+    dim: number of position coordinates ``d`` (state has ``2d`` entries).
+    q: acceleration noise spectral density (units²/s³, e.g. px²/s³).
+    r: measurement noise variance (units², e.g. px²).
+    """
+
+    def __init__(self, dim: int = 2, *, q: float = 1e5, r: float = 0.25, p0_pos: float = 4.0, p0_vel: float = 1e4):
+        self.dim = d = int(dim)
+        self.q = float(q)
+        self.x = np.zeros(2 * d)
+        self.P = np.diag(np.r_[np.full(d, p0_pos), np.full(d, p0_vel)])
+        self.F = np.eye(2 * d)
+        self.Q = np.zeros((2 * d, 2 * d))
+        self.H = np.hstack([np.eye(d), np.zeros((d, d))])
+        self.R = np.eye(d) * float(r)
+        self._p0 = (p0_pos, p0_vel)
+        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
+        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.y = np.zeros(d)       # last innovation
+        self.S = np.eye(d)         # last innovation covariance
+        self.misses = 0            # consecutive update(None) calls
+        self.initialized = False
+
+    def reset(self, z) -> None:
+        """Start at position ``z`` with zero velocity and the initial covariance."""
+        d = self.dim
+        z = np.asarray(z, dtype=np.float64).reshape(d)
+        self.x = np.r_[z, np.zeros(d)]
+        self.P = np.diag(np.r_[np.full(d, self._p0[0]), np.full(d, self._p0[1])])
+        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.misses = 0
+        self.initialized = True
+
+    def predict(self, dt: float) -> np.ndarray:
+        """Propagate the state by ``dt`` seconds; returns the predicted position."""
+        d = self.dim
+        dt = float(dt)
+        if not np.isfinite(dt) or dt < 0:
+            raise ShapeError(f"dt: expected a finite time step ≥ 0 s, got {dt}")
+        self.F[:d, d:] = np.eye(d) * dt
+        q = self.q
+        self.Q[:d, :d] = np.eye(d) * q * dt ** 3 / 3
+        self.Q[:d, d:] = self.Q[d:, :d] = np.eye(d) * q * dt ** 2 / 2
+        self.Q[d:, d:] = np.eye(d) * q * dt
+        self.x = self.F @ self.x
+        self.P = self.F @ self.P @ self.F.T + self.Q
+        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
+        return self.x[:d]
+
+    def update(self, z) -> None:
+        """Correct with measurement ``z`` (d,), or record a miss with ``None`` (state = prior)."""
+        if z is None:
+            self.misses += 1
+            self.x_post, self.P_post = self.x.copy(), self.P.copy()
+            return
+        z = np.asarray(z, dtype=np.float64).reshape(self.dim)
+        if not np.all(np.isfinite(z)):
+            raise ShapeError("z: measurement contains NaN or inf")
+        self.y = z - self.H @ self.x
+        self.S = self.H @ self.P @ self.H.T + self.R
+        K = np.linalg.solve(self.S, self.H @ self.P).T
+        self.x = self.x + K @ self.y
+        I_KH = np.eye(2 * self.dim) - K @ self.H
+        self.P = I_KH @ self.P @ I_KH.T + K @ self.R @ K.T  # Joseph form
+        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.misses = 0
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.x[: self.dim]
+
+    @property
+    def velocity(self) -> np.ndarray:
+        return self.x[self.dim:]
+
+    def mahalanobis(self, z) -> float:
+        """Distance of ``z`` from the current (prior) prediction in innovation standard deviations."""
+        y = np.asarray(z, dtype=np.float64) - self.H @ self.x
+        S = self.H @ self.P @ self.H.T + self.R
+        return float(np.sqrt(y @ np.linalg.solve(S, y)))
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    q_px: float = 2e5             # acceleration noise, px²/s³
+    r_px: float = 0.25            # measurement variance, px²
+    window_sigma: float = 4.0     # search half-width = window_sigma·σ_pos + margin
+    window_margin_px: float = 12.0
+    window_max_px: float = 80.0   # a window wider than this is not worth it: re-detect full frame
+    max_misses: int = 5           # consecutive misses before the track is lost
+    confidence_decay: float = 0.6  # confidence after k misses = decay**k
+
+
+class TipTracker:
+    """One camera's 2-D fingertip track: Kalman prediction, search window, misses, loss."""
+
+    def __init__(self, config: TrackerConfig = TrackerConfig()):
+        self.config = config
+        self.kf = KalmanCV(2, q=config.q_px, r=config.r_px)
+        self.t: float | None = None
+
+    @property
+    def tracking(self) -> bool:
+        return self.kf.initialized and self.kf.misses <= self.config.max_misses
+
+    @property
+    def confidence(self) -> float:
+        if not self.kf.initialized:
+            return 0.0
+        return float(self.config.confidence_decay ** self.kf.misses) if self.tracking else 0.0
+
+    def predict(self, t: float) -> np.ndarray | None:
+        """Predicted position at time ``t`` (None when not tracking)."""
+        if not self.tracking:
+            return None
+        dt = 0.0 if self.t is None else max(0.0, t - self.t)
+        self.t = t
+        return self.kf.predict(dt).copy()
+
+    def window(self, size: tuple[int, int], extra_px: float = 0.0):
+        """Search window ``(x0, y0, x1, y1)`` around the prediction, or None to search the full frame."""
+        if not self.tracking:
+            return None
+        c = self.config
+        sig = np.sqrt(np.maximum(np.diag(self.kf.P)[:2], 0.0))
+        half = c.window_sigma * sig + c.window_margin_px + extra_px
+        if np.any(half > c.window_max_px):
+            return None
+        u, v = self.kf.position
+        w, h = size
+        x0, x1 = max(0, int(u - half[0])), min(w, int(np.ceil(u + half[0])) + 1)
+        y0, y1 = max(0, int(v - half[1])), min(h, int(np.ceil(v + half[1])) + 1)
+        if x1 <= x0 or y1 <= y0:
+            return None
+        return x0, y0, x1, y1
+
+    def update(self, t: float, uv) -> None:
+        """Feed a detection (or None for a miss) at time ``t``."""
+        if uv is None:
+            if self.kf.initialized:
+                self.kf.update(None)
+            return
+        if not self.tracking:
+            self.kf.reset(uv)
+            self.t = t
+            return
+        if self.t is None:
+            self.t = t
+        self.kf.update(uv)
