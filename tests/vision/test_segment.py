@@ -87,3 +87,14 @@ def test_segment_errors(toy):
         seg.segment(np.zeros((240, 320), np.uint8))
     with pytest.raises(VisionError, match="odd"):
         SegmentConfig(median=4)
+
+
+@pytest.mark.parametrize("cfg", [SegmentConfig(), SegmentConfig(dilate_tiles=0, median=3), SegmentConfig(bins=16, achromatic_bin=False)])
+def test_sparse_tiles_give_exactly_the_dense_mask(toy, cfg):
+    bg, fr, skin = toy
+    seg = Segmenter(skin, cfg)
+    seg.learn([f.left for f in bg])
+    for roi in (None, (60, 40, 260, 200)):
+        a = seg.segment(fr.left, roi, method="sparse")
+        b = seg.segment(fr.left, roi, method="dense")
+        assert a.any() and np.array_equal(a, b)

@@ -38,7 +38,7 @@ __all__ = ["FingertipConfig", "Fingertip", "detect_fingertip", "square_ring_offs
 class FingertipConfig:
     """Detector settings. ``r = K / z`` is computed by the caller (pipeline) from the rig and tracker."""
 
-    delta_r: float = 2.0          # δr of the paper (pixels): square half-side r2 = r + δr
+    delta_r_frac: float = 0.35    # δr of the paper as a fraction of r: square half-side r2 = r + δr
     ring_min: float = 2.0         # S_square ≥ ring_min·r2   (paper: 2)
     ring_max: float = 4.0         # S_square ≤ ring_max·r2   (paper: 4)
     max_diagonal_pairs: int = 1   # reject when N > this     (paper: 1)
@@ -85,7 +85,7 @@ def detect_fingertip(mask: np.ndarray, r: float, config: FingertipConfig = Finge
                      *, prior_uv=None) -> Fingertip:
     """Find the fingertip in a binary skin ``mask`` (uint8, nonzero = skin) for radius ``r`` pixels."""
     ri = max(1, int(round(r)))
-    r2 = max(ri + 1, int(round(r + config.delta_r)))
+    r2 = max(ri + 1, int(round(r + config.delta_r_frac * r)))
     disk = _disk(ri)
     area = int(disk.sum())
     bx, by, bw, bh = cv2.boundingRect(mask)

@@ -33,7 +33,7 @@ class PipelineConfig:
     fingertip: FingertipConfig = field(default_factory=FingertipConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
-    tip_circle_m: float = 0.005     # radius of the test circle at the fingertip: K = f · tip_circle_m
+    tip_circle_m: float = 0.006     # radius of the test circle at the fingertip (0.75 of an 8 mm cap): K = f · tip_circle_m
     z_default_m: float = 0.6        # depth used for r = K/z before the first 3-D fix
     z_search_m: tuple[float, ...] = (0.45, 0.8)  # other depths tried when a full-frame search fails
     learn_frames: int = 10
@@ -144,7 +144,7 @@ class VisionPipeline:
         pred = trk.predict(t) if cfg.tracking else None
         z = self._z if self._z is not None else cfg.z_default_m
         r = self.K / z
-        roi = trk.window(self._size, extra_px=2 * (r + cfg.fingertip.delta_r)) if pred is not None else None
+        roi = trk.window(self._size, extra_px=2 * r * (1 + cfg.fingertip.delta_r_frac)) if pred is not None else None
         mode = "tracked" if roi is not None else "full"
         if roi is None:
             roi = (0, 0, self._size[0], self._size[1])

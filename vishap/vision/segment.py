@@ -140,6 +140,7 @@ class Segmenter:
         self._index = _TileIndex(c.tile, _n_bins(c))
         k = 2 * c.dilate_tiles + 1
         self._dilate_kernel = np.ones((k, k), np.uint8) if c.dilate_tiles > 0 else None
+        self._tile_offsets: dict = {}
 
     @property
     def learned(self) -> bool:
@@ -173,7 +174,7 @@ class Segmenter:
         M = self.background[y0 // c.tile: -(-y1 // c.tile), x0 // c.tile: -(-x1 // c.tile)]
         return histogram_intersection(hist, M) < c.match_threshold
 
-    def segment(self, image: np.ndarray, roi=None) -> np.ndarray:
+    def segment(self, image: np.ndarray, roi=None, *, method: str = "sparse") -> np.ndarray:
         """Skin mask (uint8 0/255) of ``image`` or of the region ``roi`` (snapped to tiles)."""
         if self.background is None:
             raise VisionError("segment() before learn(): no background model")
@@ -187,22 +188,64 @@ class Segmenter:
         if x1 <= x0 or y1 <= y0:
             return np.zeros((max(0, y1 - y0), max(0, x1 - x0)), np.uint8)
         hsv = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_BGR2HSV)
-        return self.segment_hsv(hsv, roi)
+        return self.segment_hsv(hsv, roi, method=method)
 
-    def segment_hsv(self, hsv: np.ndarray, roi: tuple[int, int, int, int]) -> np.ndarray:
+    def segment_hsv(self, hsv: np.ndarray, roi: tuple[int, int, int, int], *, method: str = "sparse") -> np.ndarray:
+        """Skin mask of an HSV region. ``method="sparse"`` (default) builds histograms only for the
+        tiles whose foreground state can matter — tiles holding a skin pixel and their neighbours —
+        and gives exactly the mask of ``method="dense"`` (every tile of the region)."""
         c = self.config
-        fg = self.foreground_tiles(hsv, roi).view(np.uint8)
+        skin = self.skin.mask_hsv(hsv)
+        h, w = skin.shape
+        t = c.tile
+        ty, tx = -(-h // t), -(-w // t)
+        dense = method == "dense" or h % t or w % t
+        if not dense:
+            skin_tiles = cv2.resize(skin, (tx, ty), interpolation=cv2.INTER_AREA)
+            need = skin_tiles if self._dilate_kernel is None else cv2.dilate(skin_tiles, self._dilate_kernel)
+            sel = np.flatnonzero(need)
+            if sel.size == 0:
+                return np.zeros((h, w), np.uint8)
+            dense = sel.size > 0.4 * ty * tx
+        if dense:
+            fg = self.foreground_tiles(hsv, roi).view(np.uint8)
+        else:
+            fg = self._foreground_sparse(hsv, roi, sel, (ty, tx))
         if self._dilate_kernel is not None:
             fg = cv2.dilate(fg, self._dilate_kernel)
-        h, w = hsv.shape[:2]
-        ty, tx = fg.shape
-        fg_px = cv2.resize(fg, (tx * c.tile, ty * c.tile), interpolation=cv2.INTER_NEAREST)[:h, :w]
-        skin = self.skin.mask_hsv(hsv)
+        fg_px = cv2.resize(fg, (tx * t, ty * t), interpolation=cv2.INTER_NEAREST)[:h, :w]
         mask = cv2.bitwise_and(skin, skin, mask=fg_px)
         if c.median > 1:
-            mask = cv2.medianBlur(mask, c.median)
+            bx, by, bw, bh = cv2.boundingRect(mask)
+            if bw:  # outside the mask's box (plus half the aperture) the median is 0: filter the box only
+                k = c.median // 2 + 1
+                x0, y0, x1, y1 = max(0, bx - k), max(0, by - k), min(w, bx + bw + k), min(h, by + bh + k)
+                mask[y0:y1, x0:x1] = cv2.medianBlur(np.ascontiguousarray(mask[y0:y1, x0:x1]), c.median)
         return mask
 
+    def _foreground_sparse(self, hsv, roi, sel, shape) -> np.ndarray:
+        c = self.config
+        t = c.tile
+        ty, tx = shape
+        h, w = hsv.shape[:2]
+        iy, ix = np.divmod(sel, tx)
+        key = (w, t)
+        off = self._tile_offsets.get(key)
+        if off is None:
+            dy, dx = np.mgrid[0:t, 0:t]
+            off = self._tile_offsets[key] = (dy * w + dx).ravel()
+        idx = ((iy * t) * w + ix * t)[:, None] + off[None, :]          # (T, t²) pixel indices
+        px = hsv.reshape(-1, 3)[idx]                                    # (T, t², 3)
+        b = self._lut[px[..., 0]]
+        if c.achromatic_bin:
+            b = np.where((px[..., 1] >= c.min_saturation) & (px[..., 2] >= c.min_value), b, c.bins)
+        nb = _n_bins(c)
+        hist = np.bincount((np.arange(sel.size)[:, None] * nb + b).ravel(), minlength=sel.size * nb)
+        x0, y0 = roi[0] // t, roi[1] // t
+        M = self.background[y0 + iy, x0 + ix]                           # (T, nb)
+        fg = np.zeros(ty * tx, np.uint8)
+        fg[sel] = histogram_intersection(hist.reshape(-1, nb), M) < c.match_threshold
+        return fg.reshape(ty, tx)
 
 def _check_image(img, size) -> np.ndarray:
     if not isinstance(img, np.ndarray) or img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
