@@ -39,7 +39,14 @@ def saturate(F: np.ndarray, max_force_n: float) -> np.ndarray:
 
 
 class _PlaneLaw:
-    """Shared set-up: the surface plane ``n·p = d`` and the force limit."""
+    """Shared set-up: the surface plane ``n·p = d`` and the force limit.
+
+    ``lambda_contact`` is VisHap's object gain ``ᴼΛ = diag(λx, λy, λz)`` (Eq. 8–9) to use while the
+    law renders contact: the law supplies the normal force itself, so the position servo's λ_z is
+    0; walls and buttons keep λx = λy = 1 (the device follows or holds laterally).
+    """
+
+    lambda_contact = (1.0, 1.0, 0.0)
 
     def __init__(self, normal, offset_m: float, max_force_n: float):
         n = np.asarray(normal, dtype=float)
@@ -130,9 +137,12 @@ class ButtonClick(_PlaneLaw):
 class FabricFriction(_PlaneLaw):
     """Penalty contact with static/kinetic friction on a fabric patch (HAPTEX §II-B).
 
+    The law renders the tangential force too, so ``lambda_contact`` is zero on every axis.
     State (public, inspectable): ``anchor`` (stick point in the surface, object frame, or None when
     out of contact), ``sliding``, and the last ``normal_force_n`` / ``tangential_force_n``.
     """
+
+    lambda_contact = (0.0, 0.0, 0.0)
 
     def __init__(
         self,

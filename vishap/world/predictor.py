@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "make_predictor", "contact_point", "PREDICTORS"]
+__all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "MeetingPoint", "make_predictor", "contact_point", "PREDICTORS"]
 
 
 class LastSample:
@@ -35,7 +35,8 @@ class LastSample:
         return self.t is not None
 
     def observe(self, t: float, p_robot) -> None:
-        self.t, self.p = float(t), np.asarray(p_robot, dtype=float).copy()
+        if p_robot is not None:
+            self.t, self.p = float(t), np.asarray(p_robot, dtype=float).copy()
 
     def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         return self.p.copy(), np.zeros(3)
@@ -51,6 +52,8 @@ class FiniteDifference(LastSample):
         self.v = np.zeros(3)
 
     def observe(self, t: float, p_robot) -> None:
+        if p_robot is None:
+            return
         p = np.asarray(p_robot, dtype=float)
         if self.t is not None and t > self.t:
             self.v = (p - self.p) / (t - self.t)
@@ -133,6 +136,43 @@ class KalmanPredictor:
     def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         dt = 0.0 if self.t is None else t - self.t
         return self.x[:3] + self.x[3:] * dt, self.x[3:].copy()
+
+    def cov_at(self, t: float) -> np.ndarray:
+        """Covariance (6, 6) of the state extrapolated to ``t``."""
+        dt = 0.0 if self.t is None else max(t - self.t, 0.0)
+        F, Q = self._FQ(dt)
+        return F @ self.P @ F.T + Q
+
+
+class MeetingPoint:
+    """Fuses successive predictions of where the finger will touch the surface (a static Kalman
+    filter on a point, with process noise), each weighted by its uncertainty: position and velocity
+    variance of the finger state and the unmodelled curvature ``0.5·a·τ²`` over the look-ahead τ.
+    Early, far predictions count little; late, close ones count most.
+    """
+
+    def __init__(self, *, accel_m_s2: float = 0.5, drift_m: float = 0.002):
+        self.a = float(accel_m_s2)
+        self.q = float(drift_m) ** 2
+        self.reset()
+
+    def reset(self) -> None:
+        self.c: np.ndarray | None = None
+        self.var = 0.0
+
+    def update(self, c, tau: float | None, var_p: float, var_v: float) -> np.ndarray:
+        """Fuse the prediction ``c`` (3,) made ``tau`` seconds ahead; returns the fused point."""
+        c = np.asarray(c, dtype=float)
+        tau = 0.0 if tau is None else float(tau)
+        r = var_p + tau * tau * var_v + (0.5 * self.a * tau * tau) ** 2
+        if self.c is None:
+            self.c, self.var = c.copy(), r
+            return self.c.copy()
+        self.var += self.q
+        g = self.var / (self.var + r)
+        self.c = self.c + g * (c - self.c)
+        self.var *= 1.0 - g
+        return self.c.copy()
 
 
 PREDICTORS = {"none": LastSample, "cv": FiniteDifference, "kalman": KalmanPredictor}

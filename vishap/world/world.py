@@ -26,13 +26,14 @@ import numpy as np
 
 from vishap._core.check import as_array
 from vishap.world.force_laws import DEFAULT_MAX_FORCE_N, make_law
-from vishap.world.predictor import contact_point, make_predictor
+from vishap.world.predictor import MeetingPoint, contact_point, make_predictor
 from vishap.world.scene import Scene, SceneObject
 
 __all__ = ["Interaction", "World", "HANDOVERS"]
 
 HANDOVERS = ("hold", "blend", "track")
 _UP = np.array([0.0, 0.0, 1.0])
+_ZERO3 = np.zeros(3)
 
 
 @dataclass
@@ -93,6 +94,7 @@ class World:
         self.imminent_m, self.hysteresis_m, self.hold_m = float(imminent_m), float(hysteresis_m), float(hold_m)
         self.horizon_s, self.contact_margin_m = float(horizon_s), float(contact_margin_m)
         self.path_margin_m, self.clearance_m = float(path_margin_m), float(clearance_m)
+        self.meeting = MeetingPoint()
         self.laws = {o.name: make_law(o, max_force_n=max_force_n) for o in scene.objects}
         tops = [o.centre + o.R[:, :2] @ (o.half * np.array(s)) for o in scene.objects for s in
                 ((1, 1), (1, -1), (-1, 1), (-1, -1))]
@@ -104,6 +106,7 @@ class World:
         self.law = None
         self.held: np.ndarray | None = None
         self.X_d: np.ndarray | None = None
+        self.meeting.reset()
         if hasattr(self.predictor, "reset"):
             self.predictor.reset()
 
@@ -125,6 +128,11 @@ class World:
         imminent = distances[subj.name] < self.imminent_m
         c, tau = contact_point(p, v, subj.normal, subj.offset, horizon_s=self.horizon_s)
         c = subj.project(c)
+        if tau is None:
+            self.meeting.reset()
+        elif hasattr(self.predictor, "cov_at"):  # fuse successive predictions by their uncertainty
+            P = self.predictor.cov_at(t + self.latency_s)
+            c = subj.project(self.meeting.update(c, tau, np.trace(P[:3, :3]) / 3, np.trace(P[3:, 3:]) / 3))
         X = self._target(subj, p, c, h, in_contact)
         via = False
         start = p_robot_device if p_robot_device is not None else self.X_d
@@ -150,6 +158,7 @@ class World:
     def _set_subject(self, obj: SceneObject) -> SceneObject:
         if obj is not self.subject:
             self.subject, self.held = obj, None
+            self.meeting.reset()
             if self.law is not None:
                 self.law.reset()
             self.law = self.laws[obj.name]
@@ -187,13 +196,23 @@ class World:
         return up
 
     def _clear(self, a, b) -> bool:
+        """No object's solid on the segment a→b (an object that already holds ``a`` may be left)."""
+        m = self.path_margin_m
         return not any(
-            o.segment_hits(a, b, margin=self.path_margin_m, top_clearance=-0.0005) for o in self.scene.objects
+            o.segment_hits(a, b, margin=m, top_clearance=-0.0005)
+            for o in self.scene.objects
+            if not o.segment_hits(a, a, margin=0.0, top_clearance=-0.0005)
         )
 
     # -- servo rate --------------------------------------------------------------------------------
-    def force_robot(self, p_robot_device, v_robot_device) -> np.ndarray:
+    def force_robot(self, p_robot_device, v_robot_device=None) -> np.ndarray:
         """The current subject's force law at the device contact point (robot frame, N)."""
         if self.law is None:
             return np.zeros(3)
-        return self.law.force_robot(p_robot_device, v_robot_device)
+        return self.law.force_robot(p_robot_device, _ZERO3 if v_robot_device is None else v_robot_device)
+
+    def contact_gain(self) -> tuple[tuple[float, float, float], np.ndarray]:
+        """(ᴼΛ diagonal, R_robot_obj) for the servo while the subject's law renders contact (Eq. 9)."""
+        if self.subject is None:
+            return (1.0, 1.0, 1.0), np.eye(3)
+        return self.law.lambda_contact, self.subject.R
