@@ -7,9 +7,10 @@ through :meth:`MujocoPlant.apply_tip_force`. A simulated camera (:class:`VisionM
 fingertip at the vision rate with latency, noise and drop-outs; the :class:`~vishap.world.World`
 turns each sample into ``X_d``; the servo (:class:`vishap.robot.servo.ServoLoop`) runs at 1 kHz.
 
-Contact rendering follows Eq. 8–9: while the device is pushed under the subject's surface (and
-the world announces an imminent or current interaction) the object gain ``ᴼΛ`` takes the law's
-``lambda_contact`` (λ_z = 0) and the force law enters as the servo's extra force.
+Contact rendering follows Eq. 8–9: while the device is under the subject's surface (and the world
+announces an imminent or current interaction) the object gain ``ᴼΛ`` sets λ_z = 0 and the force
+law enters as the servo's extra force; once pushed in deeper than ``engage_m`` the lateral gains
+take the mode's ``contact_gain`` (0 for a wall: the finger drags the device, sliding is free).
 
 Per approach we measure (:class:`ApproachResult`): the contact time (the pad first touches the
 passive object, or the finger crosses the surface if it misses), whether the device was in place
@@ -100,6 +101,7 @@ class ApproachResult:
     press_depth_m: np.ndarray | None = None  # fingertip depth under the surface (m) in the press
     press_force_n: np.ndarray | None = None  # device normal force (N) in the press
     through_object: bool = False  # the device's path cut through a non-subject object
+    slide_friction_ratio: float | None = None  # median |F_t| / F_n while sliding (fabric: ≈ μ_k)
     log: dict | None = None
 
 
@@ -127,6 +129,7 @@ def run_approach(
     pad: FingerPad | None = None,
     seed: int = 0,
     in_place_m: float = 0.001,
+    engage_m: float = 0.0003,
     substeps: int = 1,
     stop_after_contact_s: float | None = None,
     record: bool = False,
@@ -156,11 +159,11 @@ def run_approach(
         n_ticks = min(n_ticks, int(math.ceil((traj.t_surface + stop_after_contact_s + 0.3) / dt)))
     t_next_cam = 0.0
     pending: list[tuple[float, float, np.ndarray | None]] = []  # (arrival, capture time, measurement)
-    contact_lambda = False
-    lam, R = (1.0, 1.0, 1.0), np.eye(3)
+    lam_state = 0  # 0: free (Λ = I), 1: touching the surface (λ_z = 0), 2: pressed in (mode's gain)
     dev = np.empty((n_ticks, 3))
     subj = np.empty(n_ticks, dtype=object)
     f_n = np.zeros(n_ticks)
+    f_t = np.zeros(n_ticks)
     d_f = np.zeros(n_ticks)
     touching = np.zeros(n_ticks, dtype=bool)
     xd_log = np.empty((n_ticks, 3))
@@ -191,24 +194,30 @@ def run_approach(
         F_pad = pad.force_on_device(p_f, v_f, p_dev, v_dev, s.normal, half)
         plant.apply_tip_force(F_pad)
         c0 = _time.perf_counter()
-        # the subject's law renders contact while the device is under its surface
+        # the subject's law renders contact while the device is under its surface; the lateral gain
+        # is released (mode's contact_gain) only once the finger has clearly pushed it in
         F_law = None
-        if world.law is not None and (it.imminent or it.in_contact) and world.law.depth(p_dev) > 0.0:
-            F_law = world.force_robot(p_dev, v_dev)
-            if not contact_lambda:
+        state = 0
+        if world.law is not None and (it.imminent or it.in_contact):
+            depth = world.law.depth(p_dev)
+            if depth > 0.0:
+                F_law = world.force_robot(p_dev, v_dev)
+                state = 2 if depth > engage_m else 1
+        if state != lam_state:
+            if state == 0:
+                ctrl.set_lambda(None)
+                if world.law is not None:
+                    world.law.reset()
+            else:
                 lam, R = world.contact_gain()
-                ctrl.set_lambda(lam, R)
-                contact_lambda = True
-        elif contact_lambda:
-            ctrl.set_lambda(None)
-            contact_lambda = False
-            if world.law is not None:
-                world.law.reset()
+                ctrl.set_lambda(lam if state == 2 else (1.0, 1.0, 0.0), R)
+            lam_state = state
         servo.tick(t, X_d, F_law)
         cost += _time.perf_counter() - c0
         F = ctrl.F_pd
         nrm = s.normal
         f_n[k] = F[0] * nrm[0] + F[1] * nrm[1] + F[2] * nrm[2]
+        f_t[k] = math.sqrt(max(F[0] * F[0] + F[1] * F[1] + F[2] * F[2] - f_n[k] * f_n[k], 0.0))
         d_f[k] = -obj.height(p_f)
         dev[k] = p_dev
         xd_log[k] = X_d
@@ -234,7 +243,14 @@ def run_approach(
             out = np.nonzero(dist > in_place_m)[0]
             first_in = 0 if out.size == 0 else int(out[-1]) + 1
             lead = t_contact - first_in * dt
-    sel = traj.press_mask(np.arange(n_ticks) * dt)
+    ts = np.arange(n_ticks) * dt
+    sel = traj.press_mask(ts)
+    ratio = None
+    if traj.slide is not None:
+        mid = (ts > traj.t_press_end + 0.2 * traj.slide_s) & (ts < traj.t_slide_end - 0.2 * traj.slide_s)
+        mid &= f_n[:n_ticks] > 0.1
+        if mid.sum() > 10:
+            ratio = float(np.median(f_t[:n_ticks][mid] / f_n[:n_ticks][mid]))
     through = _cuts_through(scene, dev, subj)
     order = [x for i, x in enumerate(subj) if x and (i == 0 or x != subj[i - 1])]
     log = None
@@ -243,7 +259,7 @@ def run_approach(
                "touching": touching, "finger": np.array([traj.position(k * dt) for k in range(n_ticks)])}
     return ApproachResult(
         traj.object_name, obj.kind, traj.speed_m_s, t_contact, touched, in_place, lead, err,
-        cost / max(n_ticks, 1) * 1e6, order, d_f[sel], f_n[sel], through, log,
+        cost / max(n_ticks, 1) * 1e6, order, d_f[sel], f_n[sel], through, ratio, log,
     )
 
 

@@ -43,10 +43,10 @@ class _PlaneLaw:
 
     ``lambda_contact`` is VisHap's object gain ``ᴼΛ = diag(λx, λy, λz)`` (Eq. 8–9) to use while the
     law renders contact: the law supplies the normal force itself, so the position servo's λ_z is
-    0; walls and buttons keep λx = λy = 1 (the device follows or holds laterally).
+    0; λx, λy come from the interaction mode (:func:`make_law`).
     """
 
-    lambda_contact = (1.0, 1.0, 0.0)
+    lambda_contact = (0.0, 0.0, 0.0)
 
     def __init__(self, normal, offset_m: float, max_force_n: float):
         n = np.asarray(normal, dtype=float)
@@ -137,12 +137,9 @@ class ButtonClick(_PlaneLaw):
 class FabricFriction(_PlaneLaw):
     """Penalty contact with static/kinetic friction on a fabric patch (HAPTEX §II-B).
 
-    The law renders the tangential force too, so ``lambda_contact`` is zero on every axis.
     State (public, inspectable): ``anchor`` (stick point in the surface, object frame, or None when
     out of contact), ``sliding``, and the last ``normal_force_n`` / ``tangential_force_n``.
     """
-
-    lambda_contact = (0.0, 0.0, 0.0)
 
     def __init__(
         self,
@@ -208,6 +205,12 @@ class FabricFriction(_PlaneLaw):
 
 def make_law(obj, *, max_force_n: float = DEFAULT_MAX_FORCE_N):
     """The force law for one :class:`~vishap.world.scene.SceneObject`, from its mode and spec."""
+    built = _make_law(obj, max_force_n)
+    built.lambda_contact = tuple(float(v) for v in obj.mode.contact_gain)
+    return built
+
+
+def _make_law(obj, max_force_n: float):
     law = obj.mode.law
     if law.kind == "wall_spring":
         return WallSpring(obj.normal, obj.offset, stiffness_n_m=law.stiffness_n_m,

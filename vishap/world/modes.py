@@ -77,6 +77,12 @@ class Mode(Schema):
     kinds: list[Literal["wall", "button", "fabric"]] = Field(min_length=1)
     allows: list[Literal["slide", "press", "click", "stroke", "texture"]] = Field(min_length=1)
     target: Literal["follow", "centre"]
+    #: ᴼΛ = diag(λx, λy, λz) for the position servo while the law renders contact (Eq. 8–9): λ_z = 0
+    #: because the law gives the normal force; λx = λy = 0 lets the finger drag the device (sliding),
+    #: 1 holds it laterally (a key in its guide)
+    contact_gain: tuple[
+        Annotated[float, Field(ge=0, le=1)], Annotated[float, Field(ge=0, le=1)], Annotated[float, Field(ge=0, le=1)]
+    ] = (0.0, 0.0, 0.0)
     law: Law
 
 

@@ -90,9 +90,11 @@ class FingerTrajectory:
     def velocity(self, t: float, h: float = 1e-4) -> np.ndarray:
         return (self.position(t + h) - self.position(t - h)) / (2.0 * h)
 
-    def press_mask(self, t) -> np.ndarray:
+    def press_mask(self, t, *, before_s: float = 0.05) -> np.ndarray:
+        """Times of the Fig. 6 sweep: from ``before_s`` before the finger reaches the surface to the
+        end of the press."""
         t = np.asarray(t)
-        return (t > self.t_approach_end) & (t <= self.t_press_end)
+        return (t > self.t_surface - before_s) & (t <= self.t_press_end)
 
 
 def _contact_point(obj: SceneObject, rng: np.random.Generator) -> np.ndarray:
@@ -128,15 +130,17 @@ def make_approaches(
         obj = scene.object(names[i % len(names)])
         c = _contact_point(obj, rng)
         others = [o for o in scene.objects if o.name != obj.name]
-        if others:
-            o2 = others[rng.integers(len(others))]
-            base = _contact_point(o2, rng)
-            start = base + o2.normal * rng.uniform(0.03, 0.05)
-        else:
-            ang = rng.uniform(0, 2 * np.pi)
-            lateral = (obj.R[:, 0] * np.cos(ang) + obj.R[:, 1] * np.sin(ang)) * rng.uniform(0.0, 0.04)
-            start = c + obj.normal * rng.uniform(0.04, 0.08) + lateral
-        start = np.clip(start, REACH_MIN + 0.005, REACH_MAX - 0.005)
+        for _ in range(50):  # a finger path that passes clear of every other object
+            if others:
+                o2 = others[rng.integers(len(others))]
+                start = _contact_point(o2, rng) + o2.normal * rng.uniform(0.03, 0.06)
+            else:
+                ang = rng.uniform(0, 2 * np.pi)
+                lateral = (obj.R[:, 0] * np.cos(ang) + obj.R[:, 1] * np.sin(ang)) * rng.uniform(0.0, 0.04)
+                start = c + obj.normal * rng.uniform(0.04, 0.08) + lateral
+            start = np.clip(start, REACH_MIN + 0.005, REACH_MAX - 0.005)
+            if not any(o.segment_hits(start, c, margin=0.008, top_clearance=0.008) for o in others):
+                break
         L = float(np.linalg.norm(c - start))
         stroke = None
         if slide and "slide" in obj.mode.allows:

@@ -1,0 +1,66 @@
+"""Closed-loop meetings on the MuJoCo device: few, short, noise-free episodes (correctness, not speed)."""
+import numpy as np
+import pytest
+
+from vishap.world.closed_loop import FingerPad, VisionModel, run_approach
+from vishap.world.scene import load_scene
+from vishap.world.trajectories import FingerTrajectory, make_approaches
+from vishap.world.world import World
+
+pytest.importorskip("mujoco")
+CLEAN = VisionModel(noise_m=0.0, dropout=0.0)
+
+
+def _traj(scene, name, start_offset, speed, **kw):
+    obj = scene.object(name)
+    c = obj.centre.copy()
+    return FingerTrajectory(name, obj.normal, c + np.asarray(start_offset), c, speed, **kw)
+
+
+def test_wall_meets_finger_first_and_is_a_linear_spring():
+    scene = load_scene("wall")
+    tr = _traj(scene, "wall", [0.02, -0.015, 0.05], 0.3, slide=np.array([0.0, 0.02, 0.0]))
+    r = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s), vision=CLEAN)
+    assert r.touched and r.in_place and r.lead_time_s > 0.005
+    assert r.contact_error_m < 0.001
+    m = r.press_depth_m > 0.001
+    d, f = r.press_depth_m[m], r.press_force_n[m]
+    slope, icpt = np.polyfit(d, f, 1)
+    r2 = 1 - np.var(f - (slope * d + icpt)) / np.var(f)
+    pad, k_wall = FingerPad().k_normal_n_m, 800.0
+    assert r2 > 0.99
+    assert slope == pytest.approx(pad * k_wall / (pad + k_wall), rel=0.1)  # pad and wall in series
+    assert np.all(np.abs(r.press_force_n[r.press_depth_m < -0.001]) < 0.05)  # only the holding servo before the touch
+    assert r.slide_friction_ratio < 0.1  # a hard wall allows sliding
+
+
+def test_button_force_has_two_slopes_and_a_click():
+    scene = load_scene("button")
+    r = run_approach(scene, _traj(scene, "key", [0.0, 0.0, 0.04], 0.2), World(scene, latency_s=0.033), vision=CLEAN)
+    assert r.in_place and r.contact_error_m < 0.001
+    d, f = r.press_depth_m, r.press_force_n
+    grow = np.r_[True, np.diff(d) > 0]  # pressing in
+    d, f = d[grow], f[grow]
+    before = (d > 0.0003) & (d < 0.0020)
+    after = (d > 0.0028) & (d < 0.0040)
+    k1 = np.polyfit(d[before], f[before], 1)[0]
+    k2 = np.polyfit(d[after], f[after], 1)[0]
+    assert k1 > 2.5 * k2 > 0
+    peak = f[d < 0.0025].max()
+    assert f[(d > 0.0025) & (d < 0.003)].min() < 0.5 * peak  # the click: the force falls
+
+
+def test_fabric_slides_with_kinetic_friction():
+    scene = load_scene("fabric")
+    tr = _traj(scene, "fabric", [0.0, 0.0, 0.04], 0.2, slide=np.array([0.02, 0.0, 0.0]), press_max_m=0.005)
+    r = run_approach(scene, tr, World(scene, latency_s=0.033), vision=CLEAN)
+    assert r.slide_friction_ratio == pytest.approx(scene.objects[0].spec.surface.mu_kinetic, abs=0.03)
+
+
+def test_panel_switches_subject_and_goes_over_the_shelf():
+    scene = load_scene("panel")
+    trajs = make_approaches(scene, 3, seed=5, objects=["key_a", "left_wall", "key_b"], slide=False)
+    for tr in trajs:
+        r = run_approach(scene, tr, World(scene, latency_s=0.033), vision=CLEAN, stop_after_contact_s=0.05)
+        assert r.subjects[-1] == tr.object_name and len(r.subjects) >= 2, r.subjects
+        assert not r.through_object and r.touched
