@@ -55,30 +55,83 @@ def _as_pairs(p_src, p_dst, weights):
     return src, dst, w
 
 
-def degeneracy(p_src, p_dst, weights=None) -> str:
-    """Why these pairs cannot determine a rigid transform ('' when they can)."""
-    src, dst, w = _as_pairs(p_src, p_dst, weights)
-    if not np.all(np.isfinite(src)):
+def _check_values(src: np.ndarray, dst: np.ndarray, w: np.ndarray) -> str:
+    """Reasons that do not need the geometry: non-finite values, bad weights, too few pairs."""
+    if not np.isfinite(src).all():
         return f"p_src holds NaN or inf ({int(np.sum(~np.isfinite(src).all(axis=1)))} of {len(src)} points)"
-    if not np.all(np.isfinite(dst)):
+    if not np.isfinite(dst).all():
         return f"p_dst holds NaN or inf ({int(np.sum(~np.isfinite(dst).all(axis=1)))} of {len(dst)} points)"
-    if not np.all(np.isfinite(w)) or np.any(w < 0):
+    if not np.isfinite(w).all() or (w < 0).any():
         return "weights must be finite and non-negative"
-    used = w > 0
-    n = int(np.sum(used))
+    n = int(np.count_nonzero(w))
     if n < 3:
         return f"need at least 3 point pairs with positive weight, got {n}"
-    scale = max(float(np.max(np.abs(src[used]))), float(np.max(np.abs(dst[used]))), 1e-300)
-    if scale > 1e150:
+    if max(float(np.abs(src).max()), float(np.abs(dst).max())) > 1e150:
         return "coordinates too large to square safely (|p| > 1e150)"
-    for name, p in (("p_src", src), ("p_dst", dst)):
-        q = p[used] - np.average(p[used], axis=0, weights=w[used])
-        s = np.linalg.svd(q * np.sqrt(w[used])[:, None], compute_uv=False)
-        if s[0] <= 1e-12 * max(1.0, float(np.max(np.abs(p[used])))):
-            return f"{name}: all points coincide"
-        if s[1] <= _COLLINEAR_RTOL * s[0]:
-            return f"{name}: points are collinear (second extent {s[1] / s[0]:.1e} of the first)"
     return ""
+
+
+def _spread_reason(name: str, p: np.ndarray, centred: np.ndarray, w: np.ndarray) -> str:
+    """'' unless the weighted point set is (nearly) a single point or a line.
+
+    From the invariants of the 3×3 scatter C = Σ w q qᵀ (eigenvalues λ1 ≥ λ2 ≥ λ3, the squared
+    principal extents): tr C = Σλ and c2 = ½(tr² C − tr C²) = λ1λ2 + λ1λ3 + λ2λ3 ≈ λ1λ2 when the
+    set is nearly a line, so c2 / tr² ≈ λ2/λ1 = (second extent / first)².
+    """
+    C = (centred * w[:, None]).T @ centred
+    tr = float(C[0, 0] + C[1, 1] + C[2, 2])
+    if tr <= (1e-12 * max(1.0, float(np.abs(p).max()))) ** 2 * float(w.sum()):
+        return f"{name}: all points coincide"
+    c2 = 0.5 * (tr * tr - float(np.sum(C * C)))
+    ratio = math.sqrt(max(c2, 0.0)) / tr
+    if ratio <= _COLLINEAR_RTOL:
+        return f"{name}: points are collinear (second extent {ratio:.1e} of the first)"
+    return ""
+
+
+def _fit(src: np.ndarray, dst: np.ndarray, w: np.ndarray):
+    """Checked weighted fit: ``(R, t, '')`` or ``(None, None, reason)``."""
+    why = _check_values(src, dst, w)
+    if why:
+        return None, None, why
+    if not (w > 0).all():
+        keep = w > 0
+        src, dst, w = src[keep], dst[keep], w[keep]
+    wsum = float(w.sum())
+    mu_s = (w @ src) / wsum
+    mu_d = (w @ dst) / wsum
+    a = src - mu_s
+    b = dst - mu_d
+    why = _spread_reason("p_src", src, a, w) or _spread_reason("p_dst", dst, b, w)
+    if why:
+        return None, None, why
+    H = (a * w[:, None]).T @ b  # Σ w a bᵀ
+    U, _, Vt = np.linalg.svd(H)
+    V = Vt.T
+    M = V @ U.T
+    det = (M[0, 0] * (M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]) - M[0, 1] * (M[1, 0] * M[2, 2] - M[1, 2] * M[2, 0])
+           + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]))
+    d = 1.0 if det >= 0 else -1.0  # never a reflection
+    R = (V * np.array([1.0, 1.0, d])) @ U.T
+    t = mu_d - R @ mu_s
+    if not (np.isfinite(R).all() and np.isfinite(t).all()):
+        return None, None, "numerical failure in the SVD"
+    return R, t, ""
+
+
+def _best_transform(src, dst, score_on, r2, gate2):
+    """Least-squares transform on the scored pairs that the best hypothesis calls inliers."""
+    keep = score_on[r2 <= gate2]
+    R, t, why = _fit(src[keep], dst[keep], np.ones(len(keep)))
+    if why:  # fall back to the three best-fitting pairs
+        keep = score_on[np.argsort(r2)[:3]]
+        R, t = kabsch_umeyama(src[keep], dst[keep], np.ones(3))
+    return R, t
+
+
+def degeneracy(p_src, p_dst, weights=None) -> str:
+    """Why these pairs cannot determine a rigid transform ('' when they can)."""
+    return _fit(*_as_pairs(p_src, p_dst, weights))[2]
 
 
 def kabsch_umeyama(p_src: np.ndarray, p_dst: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -150,14 +203,10 @@ class RigidTransform:
         points, NaN/inf or bad weights.
         """
         src, dst, w = _as_pairs(p_src, p_dst, weights)
-        why = degeneracy(src, dst, w)
+        R, t, why = _fit(src, dst, w)
         if why:
             return cls.failed(why, src, dst)
-        used = w > 0
-        R, t = kabsch_umeyama(src[used], dst[used], w[used])
-        if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
-            return cls.failed("numerical failure in the SVD", src, dst)
-        return cls(R=R, t=t, p_src=src, p_dst=dst, inliers=used)
+        return cls(R=R, t=t, p_src=src, p_dst=dst, inliers=w > 0)
 
     @classmethod
     def from_estimate_robust(
@@ -167,65 +216,89 @@ class RigidTransform:
         weights=None,
         *,
         threshold: float | None = None,
-        max_trials: int = 500,
+        max_trials: int = 1000,
         seed: int | np.random.Generator = 0,
         refine: int = 3,
     ) -> "RigidTransform":
         """Fit in the presence of outliers; ``inliers`` marks the pairs kept.
 
-        With ``threshold`` (metres) this is RANSAC: the minimal 3-pair hypothesis with most
-        pairs closer than ``threshold`` wins. Without it, least median of squares (tolerates up to
+        With ``threshold`` (metres) this is RANSAC (MSAC scoring: truncated squared residuals) on
+        minimal 3-pair hypotheses. Without it, least median of squares (tolerates up to
         half outliers) picks the hypothesis and the noise level σ is estimated from the median
         residual; pairs within the 99.9 % gate of a 3-D Gaussian (≈ 4σ) are inliers. Either way
-        the result is refitted on the inliers (``refine`` rounds, weights applied).
+        the result is refitted on the inliers (``refine`` rounds, weights applied). Hypotheses are
+        drawn in batches until the inlier share seen so far gives 99.9 % confidence of one clean
+        sample (at most ``max_trials``) and are scored on at most 1000 pairs.
         """
         src, dst, w = _as_pairs(p_src, p_dst, weights)
-        why = degeneracy(src, dst, w)
+        why = _fit(src, dst, w)[2]
         if why:
             return cls.failed(why, src, dst)
+        if threshold is not None and not (threshold > 0 and math.isfinite(threshold)):
+            raise ShapeError(f"threshold: expected a positive distance in metres, got {threshold}")
         rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
         cand = np.flatnonzero(w > 0)
         n = len(cand)
-        # minimal samples: distinct triples, batched Kabsch on all of them at once
-        k = int(max_trials)
-        if n > 3:
-            draw = rng.integers(0, n, size=(2 * k + 16, 3))
-            distinct = (draw[:, 0] != draw[:, 1]) & (draw[:, 0] != draw[:, 2]) & (draw[:, 1] != draw[:, 2])
-            idx = cand[draw[distinct][:k]]
-        else:
-            idx = cand[None]
-        Rs, ts = kabsch_umeyama(src[idx], dst[idx], np.ones(idx.shape))
-        # skip near-collinear samples (their rotation about the line is arbitrary)
-        e1 = src[idx[:, 1]] - src[idx[:, 0]]
-        e2 = src[idx[:, 2]] - src[idx[:, 0]]
-        area = np.linalg.norm(np.cross(e1, e2), axis=1)
-        ok = area > 1e-6 * np.maximum(np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e2, e2))
-        if not np.any(ok):
+        # hypotheses are scored on at most 1000 pairs (the refit below uses all of them)
+        score_on = cand if n <= 1000 else rng.choice(cand, 1000, replace=False)
+        s_src, s_dst = src[score_on], dst[score_on]
+        best_score, best_r2 = math.inf, None
+        done, needed, chunk = 0, int(max_trials), 64
+        while done < needed:
+            if n > 3:
+                draw = rng.integers(0, n, size=(2 * chunk, 3))
+                distinct = (draw[:, 0] != draw[:, 1]) & (draw[:, 0] != draw[:, 2]) & (draw[:, 1] != draw[:, 2])
+                idx = cand[draw[distinct][:chunk]]
+            else:
+                idx = cand[None]
+            done += chunk
+            # skip near-collinear samples (their rotation about the line is arbitrary)
+            e1 = src[idx[:, 1]] - src[idx[:, 0]]
+            e2 = src[idx[:, 2]] - src[idx[:, 0]]
+            area = np.linalg.norm(np.cross(e1, e2), axis=1)
+            idx = idx[area > 1e-6 * np.maximum(np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e2, e2))]
+            if len(idx) == 0:
+                if n == 3:
+                    break
+                continue
+            Rs, ts = kabsch_umeyama(src[idx], dst[idx], np.ones(idx.shape))
+            r2 = np.sum((np.einsum("kij,nj->kni", Rs, s_src) + ts[:, None, :] - s_dst) ** 2, axis=-1)
+            # least median of squares, or MSAC (truncated squares) with a threshold
+            scores = np.median(r2, axis=1) if threshold is None else np.minimum(r2, threshold**2).sum(axis=1)
+            k = int(np.argmin(scores))
+            if scores[k] < best_score:
+                best_score, best_r2 = float(scores[k]), r2[k]
+                if threshold is None:
+                    gate2 = _CHI2_3_Q999 * max(float(np.median(best_r2)) / _CHI2_3_MEDIAN, 1e-300)
+                else:
+                    gate2 = threshold**2
+                eps = float(np.mean(best_r2 <= gate2))  # inlier share: adaptive number of trials
+                if eps >= 1.0:
+                    needed = min(needed, done)
+                elif eps > 0:
+                    needed = min(int(max_trials), max(chunk, math.ceil(math.log(1e-3) / math.log1p(-(eps**3)))))
+            if n == 3:
+                break
+        if best_r2 is None:
             return cls.failed("every random sample of 3 pairs was collinear", src, dst)
-        Rs, ts = Rs[ok], ts[ok]
-        r2 = np.sum((np.einsum("kij,nj->kni", Rs, src[cand]) + ts[:, None, :] - dst[cand]) ** 2, axis=-1)
         if threshold is None:
-            best = int(np.argmin(np.median(r2, axis=1)))
-            sigma2 = float(np.median(r2[best])) / _CHI2_3_MEDIAN
-            sigma2 *= (1.0 + 5.0 / max(n - 3, 1)) ** 2  # Rousseeuw's small-sample factor
+            sigma2 = float(np.median(best_r2)) / _CHI2_3_MEDIAN
+            sigma2 *= (1.0 + 5.0 / max(len(score_on) - 3, 1)) ** 2  # Rousseeuw's small-sample factor
             gate2 = _CHI2_3_Q999 * max(sigma2, 1e-300)
         else:
-            if not (threshold > 0 and math.isfinite(threshold)):
-                raise ShapeError(f"threshold: expected a positive distance in metres, got {threshold}")
             gate2 = threshold**2
-            best = int(np.argmax(np.sum(r2 < gate2, axis=1)))
-        inl = np.zeros(len(src), dtype=bool)
-        inl[cand] = r2[best] <= gate2
+        # inliers of the best hypothesis on all pairs: refit the best sample's transform
+        R, t = _best_transform(src, dst, score_on, best_r2, gate2)
+        inl = (np.sum((src @ R.T + t - dst) ** 2, axis=1) <= gate2) & (w > 0)
         fit = None
         for _ in range(max(1, refine)):
-            if int(inl.sum()) < 3 or degeneracy(src[inl], dst[inl], w[inl]):
+            R, t, why = _fit(src[inl], dst[inl], w[inl])
+            if why:
                 break
-            R, t = kabsch_umeyama(src[inl], dst[inl], w[inl])
             fit = (R, t)
             res2 = np.sum((src @ R.T + t - dst) ** 2, axis=1)
             if threshold is None:
-                sigma2 = float(np.median(res2[inl])) / _CHI2_3_MEDIAN
-                gate2 = _CHI2_3_Q999 * max(sigma2, 1e-300)
+                gate2 = _CHI2_3_Q999 * max(float(np.median(res2[inl])) / _CHI2_3_MEDIAN, 1e-300)
             new = (res2 <= gate2) & (w > 0)
             if np.array_equal(new, inl):
                 break
