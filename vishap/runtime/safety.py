@@ -56,7 +56,10 @@ class TargetGuard:
         self.retreat_point = np.clip(np.asarray(self.retreat_point, float).reshape(3), self.box_lo, self.box_hi)
         if not (np.all(np.isfinite(self.box_lo)) and np.all(self.box_hi > self.box_lo)):
             raise ValueError("TargetGuard: the box needs finite lower corner below the upper corner")
-        self._last_good = self.retreat_point.copy()
+        self._lo = tuple(float(v) for v in self.box_lo)
+        self._hi = tuple(float(v) for v in self.box_hi)
+        self._retreat = tuple(float(v) for v in self.retreat_point)
+        self._good = list(self._retreat)  # last good target (before any input: the retreat point)
         self._active: Fault | None = None
         self._trouble_since: float | None = None
 
@@ -73,23 +76,37 @@ class TargetGuard:
 
     def decide(self, t: float, X_d, made_at: float, confidence: float, calibrated: bool = True) -> GuardDecision:
         """The target to use at time ``t`` given the newest input (see module docstring)."""
-        fault = None
+        x = np.asarray(X_d, dtype=float).reshape(-1)
+        if x.shape[0] != 3:
+            x = np.full(3, np.nan)
+        gx, gy, gz, action, fault = self.decide_scalar(
+            t, float(x[0]), float(x[1]), float(x[2]), float(made_at), float(confidence), calibrated
+        )
+        return GuardDecision(np.array((gx, gy, gz)), action, fault)
+
+    def decide_scalar(self, t, x, y, z, made_at, confidence, calibrated=True):
+        """:meth:`decide` on plain floats for the 1 kHz hot path: ``(x, y, z, action, fault)``."""
+        isfinite = math.isfinite
         if not calibrated:
             fault = Fault.CALIBRATION_MISSING
+        elif not (isfinite(x) and isfinite(y) and isfinite(z) and isfinite(made_at) and isfinite(confidence)):
+            fault = Fault.NAN_INPUT
+        elif t - made_at > self.stale_after_s:
+            fault = Fault.VISION_STALLED
+        elif confidence < self.min_confidence:
+            fault = Fault.FINGER_LOST
         else:
-            x = np.asarray(X_d, dtype=float).reshape(-1)
-            if x.shape[0] != 3 or not np.all(np.isfinite(x)) or not math.isfinite(made_at) or not math.isfinite(confidence):
-                fault = Fault.NAN_INPUT
-            elif t - made_at > self.stale_after_s:
-                fault = Fault.VISION_STALLED
-            elif confidence < self.min_confidence:
-                fault = Fault.FINGER_LOST
-        if fault is None:
+            lo, hi = self._lo, self._hi
+            g = self._good
+            g[0] = lo[0] if x < lo[0] else hi[0] if x > hi[0] else x
+            g[1] = lo[1] if y < lo[1] else hi[1] if y > hi[1] else y
+            g[2] = lo[2] if z < lo[2] else hi[2] if z > hi[2] else z
             self._active = None
             self._trouble_since = None
-            self._last_good = np.clip(x, self.box_lo, self.box_hi)
-            return GuardDecision(self._last_good.copy(), "track", None)
+            return g[0], g[1], g[2], "track", None
         self._enter(fault, t)
         if fault is Fault.CALIBRATION_MISSING or t - self._trouble_since >= self.retreat_after_s:
-            return GuardDecision(self.retreat_point.copy(), "retreat", fault)
-        return GuardDecision(self._last_good.copy(), "hold", fault)
+            r = self._retreat
+            return r[0], r[1], r[2], "retreat", fault
+        g = self._good
+        return g[0], g[1], g[2], "hold", fault
