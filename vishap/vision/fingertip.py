@@ -13,7 +13,7 @@ The paper's pseudo-code, for every pixel p of the search region:
 8.–9. the number N of diagonally opposite pixel pairs of S that are both skin must be ≤ 1 (a
       point in the middle of a finger has skin on two opposite sides);
 10. p is a candidate with ``score = S_filled``; the best score wins (ties: nearest to the
-      predicted position, else nearest to the candidates' mean).
+      predicted position, else farthest from the skin centroid — the hand's extremity).
 
 The loop is vectorised: step 4–5 is one erosion by the disk (a pixel survives exactly when its
 whole circle is skin); steps 6–9 gather the square's pixels of the surviving candidates at once.
@@ -31,7 +31,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-__all__ = ["FingertipConfig", "Fingertip", "detect_fingertip", "square_ring_offsets", "fit_circle"]
+__all__ = ["FingertipConfig", "Fingertip", "detect_fingertip", "detect_fingertips", "square_ring_offsets", "fit_circle"]
 
 
 @dataclass(frozen=True)
@@ -84,26 +84,39 @@ def _disk(r: int) -> np.ndarray:
 def detect_fingertip(mask: np.ndarray, r: float, config: FingertipConfig = FingertipConfig(),
                      *, prior_uv=None) -> Fingertip:
     """Find the fingertip in a binary skin ``mask`` (uint8, nonzero = skin) for radius ``r`` pixels."""
+    tips = detect_fingertips(mask, r, config, prior_uv=prior_uv, max_tips=1)
+    return tips[0] if tips else Fingertip(False, radius_px=float(r))
+
+
+def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = FingertipConfig(),
+                      *, prior_uv=None, max_tips: int = 4) -> list[Fingertip]:
+    """All separate fingertip candidates (best first), at most ``max_tips``.
+
+    Candidates are grouped: after the best one, candidates within ``2·r2`` of it are dropped, and
+    so on. Order: score (the paper's), then distance to ``prior_uv`` when given, else distance
+    from the skin centroid of the mask, farthest first (an extended finger is the hand's extremity).
+    """
     ri = max(1, int(round(r)))
     r2 = max(ri + 1, int(round(r + config.delta_r_frac * r)))
     disk = _disk(ri)
     area = int(disk.sum())
     bx, by, bw, bh = cv2.boundingRect(mask)
     if bw == 0:
-        return Fingertip(False, radius_px=float(r))
+        return []
     if bw * bh < mask.size // 2:  # work on the mask's bounding box (plus a margin) only
         x0, y0 = max(0, bx - r2), max(0, by - r2)
         x1, y1 = min(mask.shape[1], bx + bw + r2), min(mask.shape[0], by + bh + r2)
         if (x0, y0) != (0, 0) or (x1, y1) != mask.shape[::-1]:
             prior = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64) - (x0, y0)
-            tip = detect_fingertip(np.ascontiguousarray(mask[y0:y1, x0:x1]), r, config, prior_uv=prior)
-            if tip.found:
+            tips = detect_fingertips(np.ascontiguousarray(mask[y0:y1, x0:x1]), r, config, prior_uv=prior,
+                                     max_tips=max_tips)
+            for tip in tips:
                 tip.uv = tip.uv + (x0, y0)
                 tip.uv_pixel = tip.uv_pixel + (x0, y0)
-            return tip
+            return tips
     h, w = mask.shape
     if h < 2 * r2 + 1 or w < 2 * r2 + 1:
-        return Fingertip(False, radius_px=float(r))
+        return []
     # steps 1, 4, 5: whole circle is skin; outside the mask counts as non-skin.
     # Shortcut (exact): a pixel whose whole square of half-side r2 is skin has S_square = 8·r2,
     # which step 7 rejects, so those pixels (a palm's interior) are dropped before gathering.
@@ -115,8 +128,7 @@ def detect_fingertip(mask: np.ndarray, r: float, config: FingertipConfig = Finge
     else:
         cnt = cv2.filter2D((mask > 0).astype(np.float32), -1, disk.astype(np.float32),
                            borderType=cv2.BORDER_CONSTANT)
-        ok = ((cnt >= config.fill_ratio * area - 1e-3) & (mask > 0) & (inner == 0)).view(np.uint8)
-        cand = ok
+        cand = ((cnt >= config.fill_ratio * area - 1e-3) & (mask > 0) & (inner == 0)).view(np.uint8)
         scores = cnt
     cand[:r2] = 0
     cand[h - r2:] = 0
@@ -124,12 +136,10 @@ def detect_fingertip(mask: np.ndarray, r: float, config: FingertipConfig = Finge
     cand[:, w - r2:] = 0
     pts = cv2.findNonZero(cand)
     if pts is None:
-        return Fingertip(False, radius_px=float(r))
+        return []
     pts = pts.reshape(-1, 2)
     xs = pts[:, 0].astype(np.intp)
     ys = pts[:, 1].astype(np.intp)
-    if scores is not None:
-        scores = scores[ys, xs]
     # steps 6–9 on the square ring
     off = square_ring_offsets(r2)
     ring = mask[ys[:, None] + off[None, :, 1], xs[:, None] + off[None, :, 0]] > 0  # (M, 8 r2)
@@ -138,25 +148,36 @@ def detect_fingertip(mask: np.ndarray, r: float, config: FingertipConfig = Finge
     n_diag = (ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
     keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2) & (n_diag <= config.max_diagonal_pairs)
     if not np.any(keep):
-        return Fingertip(False, radius_px=float(r))
+        return []
     xs, ys, ring = xs[keep], ys[keep], ring[keep]
-    score = np.full(xs.size, float(area)) if scores is None else scores[keep].astype(np.float64)
-    # step 10: best score; ties broken by the prior (tracking) or the candidates' mean
-    best = np.flatnonzero(score >= score.max() - 1e-9)
+    score = np.full(xs.size, float(area)) if scores is None else scores[ys, xs].astype(np.float64)
+    # step 10: best score first; ties broken by the prior or by extremity
     if prior_uv is not None:
         ref = np.asarray(prior_uv, dtype=np.float64)
+        tie = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
     else:
-        ref = np.array([xs[best].mean(), ys[best].mean()])
-    k = best[np.argmin((xs[best] - ref[0]) ** 2 + (ys[best] - ref[1]) ** 2)]
-    p = np.array([xs[k], ys[k]], dtype=np.float64)
-    d = (off[ring[k]].astype(np.float64)).mean(axis=0)
-    nd = np.hypot(*d)
-    d = d / nd if nd > 0 else np.array([0.0, 1.0])
-    tip = Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r), score=float(score[k]),
-                    n_candidates=int(xs.size))
-    if config.refine:
-        _refine(mask, tip, r2)
-    return tip
+        m = cv2.moments(mask, binaryImage=True)
+        ref = np.array([m["m10"], m["m01"]]) / max(m["m00"], 1.0)
+        tie = -((xs - ref[0]) ** 2 + (ys - ref[1]) ** 2)
+    order = np.lexsort((tie, -score))
+    alive = np.ones(xs.size, bool)
+    tips = []
+    for k in order:
+        if not alive[k]:
+            continue
+        p = np.array([xs[k], ys[k]], dtype=np.float64)
+        d = (off[ring[k]].astype(np.float64)).mean(axis=0)
+        nd = np.hypot(*d)
+        d = d / nd if nd > 0 else np.array([0.0, 1.0])
+        tip = Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r), score=float(score[k]),
+                        n_candidates=int(xs.size))
+        if config.refine:
+            _refine(mask, tip, r2)
+        tips.append(tip)
+        if len(tips) >= max_tips:
+            break
+        alive &= (xs - xs[k]) ** 2 + (ys - ys[k]) ** 2 > (2 * r2) ** 2
+    return tips
 
 
 def fit_circle(pts: np.ndarray) -> tuple[np.ndarray, float] | None:

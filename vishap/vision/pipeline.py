@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vishap._core.errors import ShapeError, VisionError
-from vishap.vision.fingertip import FingertipConfig, detect_fingertip
+from vishap.vision.fingertip import FingertipConfig, detect_fingertips
 from vishap.vision.rig import StereoRig
 from vishap.vision.segment import SegmentConfig, Segmenter, snap_roi
 from vishap.vision.skin_model import SkinModel
@@ -36,6 +36,8 @@ class PipelineConfig:
     tip_circle_m: float = 0.006     # radius of the test circle at the fingertip (0.75 of an 8 mm cap): K = f · tip_circle_m
     z_default_m: float = 0.6        # depth used for r = K/z before the first 3-D fix
     z_search_m: tuple[float, ...] = (0.45, 0.8)  # other depths tried when a full-frame search fails
+    finger_radius_m: float = 0.008  # radius of the fingertip's cap (picks the index tip among candidates)
+    max_candidates: int = 4         # fingertip candidates per view in a full-frame search
     learn_frames: int = 10
     tracking: bool = True           # False: always search the full frame
 
@@ -113,16 +115,11 @@ class VisionPipeline:
             return TipEstimate(t, False, mode="learning", reason="learning the background",
                                timings={"total_ms": (time.perf_counter() - t0) * 1e3})
         timings: dict[str, float] = {}
-        found = {}
-        modes = {}
+        cands, modes = {}, {}
         for side, img in (("left", frame.left), ("right", frame.right)):
-            found[side], modes[side] = self._detect(side, img, t, timings)
+            cands[side], modes[side] = self._detect(side, img, t, timings)
         t1 = time.perf_counter()
-        sp = triangulate_tip(self.rig, found["left"], found["right"], self.config.stereo)
-        if not sp.ok and found["left"] is not None and found["right"] is not None:
-            # inconsistent pair: drop the view that is further from its prediction
-            bad = max(("left", "right"), key=lambda s: self._surprise(s, found[s]))
-            found[bad] = None
+        found, sp = self._choose_pair(cands, modes)
         for side in ("left", "right"):
             self.trackers[side].update(t, found[side])
         timings["stereo_ms"] = (time.perf_counter() - t1) * 1e3
@@ -132,6 +129,44 @@ class VisionPipeline:
             self._z = float(sp.p_cam[2])
             return TipEstimate(t, True, sp.p_cam, sp.cov_cam, found["left"], found["right"], conf, timings, modes["left"])
         return TipEstimate(t, False, None, None, found["left"], found["right"], conf, timings, modes["left"], sp.reason)
+
+    def _choose_pair(self, cands: dict, modes: dict):
+        """Pick the left/right tips: the best-ranked stereo-consistent pair.
+
+        A view in tracked mode offers its one candidate (nearest the prediction); a view searched
+        over the full frame offers several, ranked by the detector (score, then extremity: index
+        tip before thumb and curled knuckles). A pair must pass the epipolar and disparity checks
+        and its fitted cap radii, scaled by the triangulated depth, must be within 0.5–1.6 of
+        ``finger_radius_m``; the pair with the lowest rank sum wins.
+        """
+        cfg = self.config
+        L, R = cands["left"], cands["right"]
+        best, best_cost, best_sp = None, np.inf, None
+        reason = "tip missing in one view" if not (L and R) else ""
+        f = float(self.rig.K_left[0, 0])
+        for il, tl in enumerate(L):
+            for ir, tr in enumerate(R):
+                sp = triangulate_tip(self.rig, tl.uv, tr.uv, cfg.stereo)
+                if not sp.ok:
+                    reason = sp.reason
+                    continue
+                z = sp.p_cam[2]
+                ratio = [tip.cap_radius_px * z / f / cfg.finger_radius_m for tip in (tl, tr) if tip.cap_radius_px > 0]
+                if any(not (0.5 <= q <= 1.6) for q in ratio):
+                    reason = "cap radius not a fingertip's"
+                    continue
+                cost = il + ir + 0.01 * sp.epipolar_px
+                if cost < best_cost:
+                    best, best_cost, best_sp = (tl, tr), cost, sp
+        if best is not None:
+            return {"left": best[0].uv, "right": best[1].uv}, best_sp
+        found = {s: (cands[s][0].uv if cands[s] and modes[s] == "tracked" else None) for s in ("left", "right")}
+        if found["left"] is not None and found["right"] is not None:  # both tracked but inconsistent
+            bad = max(("left", "right"), key=lambda s: self._surprise(s, found[s]))
+            found[bad] = None
+        from vishap.vision.stereo import StereoPoint
+
+        return found, StereoPoint(False, reason=reason or "no consistent pair")
 
     def _surprise(self, side: str, uv) -> float:
         trk = self.trackers[side]
@@ -154,14 +189,15 @@ class VisionPipeline:
         td = time.perf_counter()
         prior = None if pred is None else pred - roi[:2]
         zs = [z] if mode == "tracked" or self._z is not None else [z, *cfg.z_search_m]
-        tip = None
+        tips = []
         for zz in zs:
-            tip = detect_fingertip(mask, self.K / zz, cfg.fingertip, prior_uv=prior)
-            if tip.found:
+            tips = detect_fingertips(mask, self.K / zz, cfg.fingertip, prior_uv=prior,
+                                     max_tips=1 if mode == "tracked" else cfg.max_candidates)
+            if tips:
                 break
         te = time.perf_counter()
         timings[f"segment_{side}_ms"] = (td - ts) * 1e3
         timings[f"detect_{side}_ms"] = (te - td) * 1e3
-        if tip is None or not tip.found:
-            return None, mode
-        return tip.uv + roi[:2], mode
+        for tip in tips:
+            tip.uv = tip.uv + roi[:2]
+        return tips, mode

@@ -1,0 +1,190 @@
+"""Evaluation of the vision pipeline on labelled synthetic sequences (VisHap §2.1 / §3 figures).
+
+Segmentation uses the paper's three ratios over all labelled pixels of both views (frames after the
+background-learning frames): ``seg_correct`` (mask agrees with "label == skin"), ``seg_false_positive``
+(mask says skin, label does not) and ``seg_false_negative``. Masks are produced before any label of
+the evaluated sequence is read.
+
+Tip accuracy is measured on frames where the ground truth says the tip is visible in both views:
+``tip2d_rms_px`` (RMS over the four image coordinates — the per-coordinate RMS), ``tip3d_rms_mm``
+(RMS of the 3-D distance to ``tip_cam``) and ``detection_rate``; frames where the tip is hidden are
+reported separately (``hidden_frames``, ``false_detections`` on them). ``track_losses`` counts the
+times the left tracker lost the finger while the tip stayed visible.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from vishap._core.errors import VisionError
+from vishap.vision.pipeline import PipelineConfig, VisionPipeline
+from vishap.vision.rig import StereoRig
+from vishap.vision.skin_model import SkinModel
+
+__all__ = ["SequenceReader", "open_sequence", "evaluate_sequence", "segmentation_ratios", "fit_skin_model"]
+
+
+@dataclass
+class _Frame:
+    index: int
+    t: float
+    left: np.ndarray
+    right: np.ndarray
+    labels_left: np.ndarray | None = None
+    labels_right: np.ndarray | None = None
+
+
+class SequenceReader:
+    """Reads the folder layout ``vishap synth`` writes (``rig.yaml``, ``left/``, ``right/``,
+    ``labels/left|right/``, ``gt.npz``); used when :mod:`vishap.sim.reader` is not importable."""
+
+    def __init__(self, folder: str | os.PathLike):
+        self.folder = Path(folder)
+        if not (self.folder / "rig.yaml").is_file():
+            raise VisionError(f"{self.folder}: not a synthetic sequence (no rig.yaml)")
+        self.rig = StereoRig.load(self.folder / "rig.yaml")
+        self._left = sorted((self.folder / "left").glob("*.png"))
+        gt_path = self.folder / "gt.npz"
+        self.gt = dict(np.load(gt_path, allow_pickle=False)) if gt_path.is_file() else {}
+        self.T_robot_cam = self.gt.get("T_robot_cam")
+
+    def __len__(self) -> int:
+        return len(self._left)
+
+    def __getitem__(self, i: int) -> _Frame:
+        name = self._left[i].name
+        read = lambda p, flag=cv2.IMREAD_COLOR: cv2.imread(str(p), flag)
+        t = float(self.gt["t"][i]) if "t" in self.gt else float(i)
+        lab = self.folder / "labels"
+        return _Frame(i, t, read(self._left[i]), read(self.folder / "right" / name),
+                      read(lab / "left" / name, cv2.IMREAD_UNCHANGED), read(lab / "right" / name, cv2.IMREAD_UNCHANGED))
+
+    def __iter__(self):
+        for i in range(len(self)):
+            yield self[i]
+
+
+def open_sequence(folder):
+    """A synthetic sequence: :class:`vishap.sim.reader.SyntheticSequence` when available."""
+    try:
+        from vishap.sim.reader import SyntheticSequence
+    except ImportError:
+        return SequenceReader(folder)
+    return SyntheticSequence(folder)
+
+
+def segmentation_ratios(mask: np.ndarray, labels: np.ndarray, skin_label: int = 1) -> np.ndarray:
+    """Counts ``[correct, false_positive, false_negative, total]`` of one mask against its labels."""
+    pred = mask > 0
+    gt = labels == skin_label
+    fp = int(np.count_nonzero(pred & ~gt))
+    fn = int(np.count_nonzero(gt & ~pred))
+    n = gt.size
+    return np.array([n - fp - fn, fp, fn, n], np.int64)
+
+
+def fit_skin_model(folders, *, frames_per_sequence: int = 20, **kw) -> SkinModel:
+    """Fit the Gaussian hue skin model from the labels of the given sequences (never evaluate on them)."""
+    imgs, labs, names = [], [], []
+    for folder in folders:
+        seq = open_sequence(folder)
+        n = len(seq)
+        for i in np.linspace(0, n - 1, min(n, frames_per_sequence)).astype(int):
+            f = seq[int(i)]
+            for img, lab in ((f.left, f.labels_left), (f.right, f.labels_right)):
+                if lab is not None and np.any(lab == 1):
+                    imgs.append(img)
+                    labs.append(lab)
+        names.append(Path(folder).name)
+    return SkinModel.fit(imgs, labs, source="labels of " + ", ".join(names), **kw)
+
+
+def evaluate_sequence(folder, *, skin_model: SkinModel | None = None, config: PipelineConfig | None = None,
+                      max_frames: int | None = None, seg_every: int = 1, keep_tracks: bool = False) -> dict:
+    """Run the pipeline over a labelled sequence and score it (see the module docstring)."""
+    seq = open_sequence(folder)
+    gt = seq.gt
+    n = len(seq) if max_frames is None else min(len(seq), max_frames)
+    cfg = config or PipelineConfig()
+    pipe = VisionPipeline(seq.rig, skin_model=skin_model, config=cfg)
+    estimates, masks_counts = [], np.zeros(4, np.int64)
+    frames_for_seg = []
+    for i in range(n):
+        f = seq[i]
+        est = pipe.process(f)
+        estimates.append(est)
+        if est.mode != "learning" and (i % seg_every == 0):
+            # full-frame masks for the segmentation ratios (not timed; labels read only afterwards)
+            frames_for_seg.append((i, pipe.segmenters["left"].segment(f.left), pipe.segmenters["right"].segment(f.right)))
+    for i, ml, mr in frames_for_seg:
+        f = seq[i]
+        masks_counts += segmentation_ratios(ml, f.labels_left) + segmentation_ratios(mr, f.labels_right)
+    return score(estimates, gt, masks_counts, keep_tracks=keep_tracks) | {"frames": n, "folder": str(folder)}
+
+
+def score(estimates, gt: dict, seg_counts: np.ndarray, *, keep_tracks: bool = False) -> dict:
+    n = len(estimates)
+    vis_l = np.asarray(gt.get("tip_visible_left", np.ones(n, bool)))[:n].astype(bool)
+    vis_r = np.asarray(gt.get("tip_visible_right", np.ones(n, bool)))[:n].astype(bool)
+    learning = np.array([e.mode == "learning" for e in estimates])
+    visible = vis_l & vis_r & ~learning
+    found = np.array([e.found for e in estimates])
+    e2, e3, z = [], [], []
+    for i in np.flatnonzero(visible & found):
+        e = estimates[i]
+        e2.append(np.r_[e.uv_left - gt["tip_uv_left"][i], e.uv_right - gt["tip_uv_right"][i]])
+        e3.append(np.linalg.norm(e.p_cam - gt["tip_cam"][i]))
+        z.append(gt["tip_cam"][i][2])
+    e2, e3, z = np.array(e2).reshape(-1, 4), np.array(e3), np.array(z)
+    losses = 0
+    tracking_prev = False
+    for i, e in enumerate(estimates):
+        if learning[i]:
+            continue
+        tracking = e.confidence > 0
+        if tracking_prev and not tracking and visible[i]:
+            losses += 1
+        tracking_prev = tracking
+    processed = [e for e in estimates if e.mode != "learning"]
+    ms = np.array([e.timings.get("total_ms", np.nan) for e in processed])
+    ms_tracked = np.array([e.timings.get("total_ms", np.nan) for e in processed if e.mode == "tracked"])
+    ms_full = np.array([e.timings.get("total_ms", np.nan) for e in processed if e.mode == "full"])
+    c, fp, fn, tot = (int(v) for v in seg_counts)
+    hidden = int(np.count_nonzero(~visible & ~learning))
+    out = {
+        "seg_correct": c / tot if tot else None,
+        "seg_false_positive": fp / tot if tot else None,
+        "seg_false_negative": fn / tot if tot else None,
+        "tip2d_rms_px": float(np.sqrt(np.mean(e2 ** 2))) if len(e2) else None,
+        "tip2d_p95_px": float(np.percentile(np.abs(e2), 95)) if len(e2) else None,
+        "tip3d_rms_mm": float(np.sqrt(np.mean(e3 ** 2)) * 1e3) if len(e3) else None,
+        "tip3d_median_mm": float(np.median(e3) * 1e3) if len(e3) else None,
+        "depth_range_m": [float(z.min()), float(z.max())] if len(z) else None,
+        "detection_rate": float(np.count_nonzero(visible & found) / max(1, np.count_nonzero(visible))),
+        "visible_frames": int(np.count_nonzero(visible)),
+        "hidden_frames": hidden,
+        "false_detections": int(np.count_nonzero(~visible & ~learning & found)),
+        "track_losses": losses,
+        "ms_per_pair": float(np.nanmedian(ms)) if len(ms) else None,
+        "ms_per_pair_tracked": float(np.nanmedian(ms_tracked)) if len(ms_tracked) else None,
+        "ms_per_pair_full": float(np.nanmedian(ms_full)) if len(ms_full) else None,
+        "frames_tracked": int(len(ms_tracked)),
+        "frames_full": int(len(ms_full)),
+    }
+    if keep_tracks:
+        out["tracks"] = [track_record(e) for e in estimates]
+    return out
+
+
+def track_record(e) -> dict:
+    """One JSON-ready row of ``vishap track`` output."""
+    lst = lambda a: None if a is None else [float(v) for v in np.asarray(a).ravel()]
+    return {"t": e.t, "found": bool(e.found), "mode": e.mode, "tip_uv_left": lst(e.uv_left),
+            "tip_uv_right": lst(e.uv_right), "tip_cam": lst(e.p_cam),
+            "cov_cam": None if e.cov_cam is None else np.asarray(e.cov_cam).tolist(),
+            "confidence": float(e.confidence), "timing_ms": {k: round(v, 4) for k, v in e.timings.items()},
+            "reason": e.reason}
