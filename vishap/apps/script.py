@@ -1,0 +1,118 @@
+"""The scripted finger of each demo: approach, touch, press, explore (slide/stroke), lift.
+
+A script is data: a start point and a list of ``(duration_s, pad_point_robot)`` moves of the finger
+*pad* (the lowest point of the fingertip's cap, the point that touches), joined by minimum-jerk
+segments (smooth, zero velocity at each way-point). The first ``hidden_s`` seconds leave the hand
+out of view (VisHap learns its background from the first 10 frames). The cap centre — what vision
+locates and the renderer poses — is the pad point plus the cap radius along the surface normal.
+The scripts touch each scene's object (``datasets/synthetic/scenes``: surfaces on z = −0.150 m)
+and include one fast approach, so the device's lead time is tested at speed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["FingerScript", "SCRIPTS", "script_for"]
+
+Z = -0.150  # surface height of every demo object (m, robot frame)
+
+
+@dataclass(frozen=True)
+class FingerScript:
+    start: tuple[float, float, float]
+    moves: tuple[tuple[float, tuple[float, float, float]], ...]
+    hidden_s: float = 0.0
+    finger_dir: tuple[float, float, float] = (-0.766, 0.0, -0.643)
+    flexion: float = 0.2
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+    def __post_init__(self):
+        object.__setattr__(self, "_t", np.concatenate([[0.0], np.cumsum([d for d, _ in self.moves])]) + self.hidden_s)
+        object.__setattr__(self, "_p", np.array([self.start] + [p for _, p in self.moves], float))
+
+    @property
+    def duration_s(self) -> float:
+        return float(self._t[-1])
+
+    def pad(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Pad point (m) and velocity (m/s) at time ``t`` (held at the ends)."""
+        T, P = self._t, self._p
+        if t <= T[0]:
+            return P[0].copy(), np.zeros(3)
+        if t >= T[-1]:
+            return P[-1].copy(), np.zeros(3)
+        k = int(np.searchsorted(T, t, side="right") - 1)
+        dur = T[k + 1] - T[k]
+        tau = (t - T[k]) / dur
+        s = tau ** 3 * (10 - 15 * tau + 6 * tau ** 2)
+        ds = 30 * tau ** 2 * (1 - tau) ** 2 / dur
+        d = P[k + 1] - P[k]
+        return P[k] + s * d, ds * d
+
+    def tip(self, t: float, tip_radius_m: float) -> np.ndarray:
+        """Centre of the fingertip cap (what vision detects)."""
+        return self.pad(t)[0] + tip_radius_m * np.asarray(self.normal, float)
+
+    def visible(self, t: float) -> bool:
+        return t >= self.hidden_s
+
+
+def _wall(hidden_s: float) -> FingerScript:
+    return FingerScript(
+        start=(0.235, 0.035, Z + 0.055),
+        hidden_s=hidden_s,
+        moves=(
+            (0.25, (0.235, 0.035, Z + 0.055)),   # appear, pause
+            (1.00, (0.215, 0.010, Z)),           # approach (peak ≈ 0.1 m/s) and touch
+            (0.40, (0.215, 0.010, Z - 0.003)),   # press 3 mm
+            (0.30, (0.215, 0.010, Z - 0.003)),   # hold
+            (0.80, (0.190, -0.010, Z - 0.003)),  # slide 32 mm along the wall
+            (0.50, (0.190, -0.010, Z + 0.040)),  # lift
+            (0.45, (0.225, -0.020, Z + 0.050)),  # move over
+            (0.30, (0.225, -0.020, Z)),          # fast approach (peak ≈ 0.3 m/s)
+            (0.50, (0.225, -0.020, Z - 0.005)),  # press 5 mm
+            (0.50, (0.225, -0.020, Z + 0.045)),  # lift
+        ),
+    )
+
+
+def _button(hidden_s: float) -> FingerScript:
+    return FingerScript(
+        start=(0.230, 0.030, Z + 0.055),
+        hidden_s=hidden_s,
+        moves=(
+            (0.25, (0.230, 0.030, Z + 0.055)),
+            (1.00, (0.200, 0.000, Z)),           # approach the key's centre
+            (0.80, (0.200, 0.000, Z - 0.0045)),  # press through the click to the bottom
+            (0.20, (0.200, 0.000, Z - 0.0045)),
+            (0.50, (0.200, 0.000, Z + 0.030)),   # release
+            (0.35, (0.202, 0.002, Z)),           # quick second press
+            (0.50, (0.202, 0.002, Z - 0.0045)),
+            (0.50, (0.202, 0.002, Z + 0.045)),
+        ),
+    )
+
+
+def _fabric(hidden_s: float) -> FingerScript:
+    return FingerScript(
+        start=(0.240, 0.030, Z + 0.055),
+        hidden_s=hidden_s,
+        moves=(
+            (0.25, (0.240, 0.030, Z + 0.055)),
+            (1.00, (0.220, 0.005, Z)),           # approach and touch
+            (0.30, (0.220, 0.005, Z - 0.002)),   # light press
+            (0.40, (0.220, 0.005, Z - 0.002)),   # rest: distributed contact
+            (0.90, (0.185, 0.005, Z - 0.002)),   # slow stroke (≈ 0.07 m/s mean)
+            (0.30, (0.215, 0.005, Z - 0.002)),   # fast stroke back (≈ 0.1 m/s mean, 0.19 peak)
+            (0.50, (0.215, 0.005, Z + 0.045)),   # lift
+        ),
+    )
+
+
+SCRIPTS = {"wall": _wall, "button": _button, "fabric": _fabric}
+
+
+def script_for(scene: str, *, hidden_s: float) -> FingerScript:
+    return SCRIPTS[scene](hidden_s)

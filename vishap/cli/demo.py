@@ -1,0 +1,71 @@
+"""``vishap demo {wall,button,fabric}``: the closed-loop demos (issue 9 parts 2, 3 and 5).
+
+Batch mode (default) simulates the whole system on a simulated clock: pyrender stereo frames of a
+scripted finger → vision → registration → world → MuJoCo device → tactile layer, writing the
+video, plots, ``log.npz`` and ``summary.json`` into ``--out``. ``--live`` runs the same pipeline on
+cameras and a real device, and says what is missing when they are not there.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+
+from vishap.apps.config import FAULT_KINDS, SCENES
+
+__all__ = ["register", "parse_fault"]
+
+
+def parse_fault(text: str) -> dict:
+    """``KIND:T_START:T_END`` (seconds of simulated time) → a fault record."""
+    parts = text.split(":")
+    if len(parts) != 3 or parts[0] not in FAULT_KINDS:
+        raise argparse.ArgumentTypeError(
+            f"expected KIND:T_START:T_END with KIND one of {', '.join(FAULT_KINDS)}, got {text!r}")
+    try:
+        return {"kind": parts[0], "t_start": float(parts[1]), "t_end": float(parts[2])}
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"times must be seconds, got {text!r}") from None
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("demo", help="run the wall / button / fabric closed-loop demo (simulated or live)")
+    p.add_argument("scene", choices=SCENES, help="which demo")
+    p.add_argument("--out", required=True, help="output folder (video, plots, log.npz, summary.json)")
+    p.add_argument("--frames", type=int, default=None, help="camera frames (default: the scene's script length)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--width", type=int, default=320, help="image width, pixels (default 320)")
+    p.add_argument("--height", type=int, default=240, help="image height, pixels (default 240)")
+    p.add_argument("--camera-hz", type=float, default=30.0, help="camera rate (default 30)")
+    p.add_argument("--calib", default=None,
+                   help="camera_robot.yaml (default: run the camera-robot calibration in simulation first)")
+    p.add_argument("--fault", action="append", type=parse_fault, default=[], metavar="KIND:T0:T1",
+                   help=f"inject a fault in [T0, T1) s; KIND one of {', '.join(FAULT_KINDS)} (repeatable)")
+    p.add_argument("--no-video", action="store_true", help="skip the MP4 (faster)")
+    p.add_argument("--live", action="store_true", help="run on cameras and a real device")
+    p.add_argument("--cameras", default="0,1", help="live: camera indices LEFT,RIGHT or one side-by-side index")
+    p.add_argument("--rig", default=None, help="live: stereo rig file (default calib/rig.yaml)")
+    p.add_argument("--device", default=None, help="live: haptic device driver name")
+    p.add_argument("--duration", type=float, default=30.0, help="live: seconds to run (default 30)")
+    p.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    if args.live:
+        from vishap.apps.live import run_live
+
+        summary = run_live(args.scene, out=args.out, cameras=args.cameras, calib=args.calib, rig=args.rig,
+                           device=args.device, duration_s=args.duration)
+    else:
+        from vishap.apps import run_demo
+        from vishap.apps.config import DemoConfig
+        from vishap._core.config import validate
+
+        fields = {"scene": args.scene, "seed": args.seed, "width": args.width, "height": args.height,
+                  "camera_hz": args.camera_hz, "calib": args.calib, "faults": args.fault,
+                  "video": not args.no_video}
+        if args.frames is not None:
+            fields["frames"] = args.frames
+        cfg = validate(DemoConfig, fields, file=None)
+        summary = run_demo(cfg, args.out, progress=True)
+    print(json.dumps(summary))
+    return 0
