@@ -15,6 +15,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     ex.add_argument("--noise-pa", type=float, default=None, help="sensor noise std, Pa (default: from config)")
     ex.set_defaults(func=_examples)
 
+    rd = ts.add_parser("render", help="render a contact sequence to drive signals (NPZ, WAV) and plots")
+    src = rd.add_mutually_exclusive_group()
+    src.add_argument("--scenario", default="stroke", choices=["stroke", "press", "approach", "slip"],
+                     help="built-in synthetic contact sequence (default stroke)")
+    src.add_argument("--input", default=None,
+                     help="NPZ of contact samples: t, position (N,3), normal_force_n, velocity (N,3), in_contact")
+    rd.add_argument("--surface", default="fabric", help="surface name from the config (default fabric)")
+    rd.add_argument("--config", default=None, help="tactile config file (default: built-in tactile.yaml)")
+    rd.add_argument("--out", default="out/tactile", help="output folder (default out/tactile)")
+    rd.add_argument("--no-feedforward", action="store_true", help="reactive rendering only")
+    rd.add_argument("--no-plots", action="store_true", help="skip the PNG charts")
+    rd.add_argument("--seed", type=int, default=0, help="seed of the textile tile / non-uniformity map")
+    rd.set_defaults(func=_render)
+
 
 def _examples(args: argparse.Namespace) -> int:
     from vishap.tactile.config import load_tactile_config
@@ -22,4 +36,61 @@ def _examples(args: argparse.Namespace) -> int:
 
     cfg = load_tactile_config(args.config)
     print(json.dumps(run_worked_examples(cfg, seed=args.seed, noise_pa=args.noise_pa)))
+    return 0
+
+
+def _render(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    import numpy as np
+    from scipy.io import wavfile
+
+    from vishap._core.errors import ConfigError
+    from vishap.tactile.config import load_tactile_config
+    from vishap.tactile.plots import plot_drive, plot_spectrogram, sleeve_mix
+    from vishap.tactile.renderer import TactileRenderer
+    from vishap.tactile.scenarios import SCENARIOS, from_arrays
+
+    cfg = load_tactile_config(args.config)
+    if args.surface not in cfg.surfaces:
+        raise ConfigError(f"unknown surface {args.surface!r}; expected one of {sorted(cfg.surfaces)}", field="surfaces")
+    if args.input:
+        path = Path(args.input)
+        if not path.is_file():
+            raise ConfigError("file not found", file=path)
+        with np.load(path) as d:
+            missing = {"t", "position", "normal_force_n", "velocity", "in_contact"} - set(d.files)
+            if missing:
+                raise ConfigError(f"missing arrays {sorted(missing)}", file=path)
+            samples = from_arrays({k: d[k] for k in d.files})
+    else:
+        samples = SCENARIOS[args.scenario]()
+    r = TactileRenderer(cfg, surface=args.surface, seed=args.seed, feedforward=not args.no_feedforward)
+    out = r.render(samples)
+    trace = out.extra["trace"]
+    tick_t = np.array([d["t"] for d in trace])
+    states = [d["state"] for d in trace]
+    od = Path(args.out)
+    od.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(od / "drive.npz", fs=out.fs, t0=out.t0, glove=out.glove.astype(np.float32),
+                        regions=out.regions.astype(np.float32), pins=out.pins.astype(np.float32), tick_t=tick_t,
+                        state=np.array(states), envelope=out.envelope, prearmed=out.prearmed)
+    fs = int(round(out.fs))
+    channels = np.vstack([out.glove[None], out.regions, out.pins.mean(axis=0)[None]]).T.astype(np.float32)
+    wavfile.write(od / "drive.wav", fs, channels)
+    mix = sleeve_mix(out.regions, out.pins)
+    mix = (mix / max(np.abs(mix).max(), 1e-9) * 0.9).astype(np.float32)
+    wavfile.write(od / "sleeve_mix.wav", fs, mix)
+    files = ["drive.npz", "drive.wav", "sleeve_mix.wav"]
+    if not args.no_plots:
+        plot_drive(od / "drive.png", out.fs, out.glove, out.regions, out.pins, tick_t, states,
+                   title=f"{args.input or args.scenario} on {args.surface}")
+        speed = [s.tangential_speed for s in samples]
+        plot_spectrogram(od / "spectrogram.png", out.fs, mix, tick_t, speed, title=f"sleeve mix: {args.input or args.scenario}")
+        files += ["drive.png", "spectrogram.png"]
+    counts = {s: states.count(s) for s in sorted(set(states))}
+    print(json.dumps({"out": str(od), "files": files, "fs_hz": out.fs, "samples": int(out.n), "ticks": len(trace),
+                      "duration_s": round(out.n / out.fs, 4), "state_ticks": counts,
+                      "channels": {"glove": 1, "regions": 3, "pins": int(out.pins.shape[0])},
+                      "wav_channels": ["glove", "R1", "R2", "R3", "pins_mean"]}))
     return 0

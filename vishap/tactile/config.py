@@ -149,6 +149,7 @@ class FeedForwardConfig(Schema):
     min_approach_speed_m_s: float = Field(ge=0.0)
     accel_filter_s: float = Field(gt=0.0, description="time constant of the acceleration estimate")
     prearm_timeout_s: float = Field(gt=0.0, description="pre-arm without contact after this is dropped")
+    prearm_level: float = Field(gt=0.0, le=1.0, description="envelope the pre-arm ramp may reach before contact")
     enabled: bool = True
 
 
@@ -162,6 +163,8 @@ class AllocationConfig(Schema):
     sleeve_weight: dict[str, float]
     texture_delay_s: dict[str, float]
     glove_force_full_n: float = Field(gt=0.0, description="force mapped to unit glove support")
+    static_texture_gain: float = Field(ge=0.0, le=1.0, description="texture level of a still press per unit roughness")
+    glove_oscillation_gain: float = Field(ge=0.0, le=1.0, description="share of the force band's oscillation on the glove")
 
     @field_validator("glove_weight", "sleeve_weight", "texture_delay_s")
     @classmethod

@@ -68,7 +68,8 @@ def phsm_targets(attrs: SurfaceAttributes, speed_m_s: float, force_n: float, ban
     k = np.arange(1, n_harmonics + 1)
     f_lines = k * speed / attrs.texture_period_m
     a_lines = r / k ** (1.0 + h)
-    idx = np.array([band_index(f, bands) for f in f_lines])
+    highs = np.array([b.high_hz for b in bands])
+    idx = np.minimum(np.searchsorted(highs, f_lines, side="left"), len(bands) - 1)
     friction_amp = min(1.0, mu) * 0.5 * motion * (0.3 + 0.7 * load)
     for i, b in enumerate(bands[1:], start=1):
         sel = (idx == i) & (f_lines >= b.low_hz) & (f_lines > 0)

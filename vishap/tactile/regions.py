@@ -118,7 +118,7 @@ def target_regions(state: ContactState, cfg: TactileConfig) -> RegionSet:
 
 
 def _slew(cur: np.ndarray, target: np.ndarray, step: float) -> np.ndarray:
-    return cur + np.clip(target - cur, -step, step)
+    return cur + np.minimum(np.maximum(target - cur, -step), step)
 
 
 class RegionController:

@@ -52,6 +52,7 @@ class SensorArray:
         # integration points, (rows*cols, s*s)
         self._px = (self.x_m.reshape(-1, 1) + ox.reshape(1, -1))
         self._py = (self.y_m.reshape(-1, 1) + oy.reshape(1, -1))
+        self._cache: dict[tuple[int, int, int, int], np.ndarray] = {}
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -60,12 +61,23 @@ class SensorArray:
     def pressure(self, centre_m, radius_m, force_n: float) -> np.ndarray:
         """Noise-free element pressures (rows, cols), Pa, for a patch at ``centre_m`` (2,)
         with semi-axes ``radius_m`` (scalar or (2,)) carrying ``force_n``."""
-        out = np.zeros(self.cfg.rows * self.cfg.cols)
         if force_n <= 0.0:
-            return out.reshape(self.shape)
+            return np.zeros(self.shape)
+        return self.unit_pressure(centre_m, radius_m) * force_n
+
+    def unit_pressure(self, centre_m, radius_m, *, quantum_m: float = 2e-5) -> np.ndarray:
+        """Element pressures per newton (Pa/N); the geometry is snapped to ``quantum_m`` (20 µm) and
+        cached, since for a fixed footprint the pressure scales exactly with the force."""
         ax, ay = np.broadcast_to(np.asarray(radius_m, dtype=np.float64), (2,))
+        key = (round(float(centre_m[0]) / quantum_m), round(float(centre_m[1]) / quantum_m),
+               round(max(ax, 1e-5) / quantum_m), round(max(ay, 1e-5) / quantum_m))
+        hit = self._cache.get(key)
+        if hit is not None:
+            return hit
+        cx, cy, ax, ay = (k * quantum_m for k in key)
         ax, ay = max(ax, 1e-5), max(ay, 1e-5)
-        cx, cy = float(centre_m[0]), float(centre_m[1])
+        out = np.zeros(self.cfg.rows * self.cfg.cols)
+        force_n = 1.0
         # only elements near the patch need evaluating
         near = (np.abs(self.x_m.ravel() - cx) <= ax + self.cfg.pitch_m) & (
             np.abs(self.y_m.ravel() - cy) <= ay + self.cfg.pitch_m
@@ -74,7 +86,12 @@ class SensorArray:
             r2 = ((self._px[near] - cx) / ax) ** 2 + ((self._py[near] - cy) / ay) ** 2
             p0 = 3.0 * force_n / (2.0 * np.pi * ax * ay)
             out[near] = p0 * np.sqrt(np.clip(1.0 - r2, 0.0, None)).mean(axis=1)
-        return out.reshape(self.shape)
+        out = out.reshape(self.shape)
+        out.flags.writeable = False
+        if len(self._cache) >= 4096:
+            self._cache.clear()
+        self._cache[key] = out
+        return out
 
     def frame(self, t: float, centre_m, radius_m, force_n: float, *, rng: np.random.Generator | None = None,
               noise_pa: float | None = None) -> SensorFrame:

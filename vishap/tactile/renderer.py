@@ -1,0 +1,276 @@
+"""The tactile sleeve's 1 kHz cycle: contact sample → drive signals (PHSM §2–§3, HAPTEX §II-C, §III-B).
+
+One :meth:`TactileRenderer.step` per servo tick, in the order of a haptic cycle:
+
+    sense (sensor array, features) → classify → predict (feed-forward) → regional control →
+    PHSM targets → JND quantiser → allocation (glove / sleeve) → continuity limits → synthesis
+
+and returns a :class:`DriveBlock` holding that tick's samples (10 at the default 10 kHz) for the
+glove channel (0–20 Hz), the three regional sleeve actuators and the 24 HAPTEX pins. Everything is
+finite and within [−1, 1]; amplitudes move no faster than ``control.amplitude_slew_per_s``.
+
+When a sample carries no pad geometry (``pad_position``/``contact_radius_m``), the patch is placed
+at the fingertip centre with a Hertz radius from the force, and the array's centroid velocity and
+local pulse durations are taken from the surface kinematics: the tangential finger velocity and the
+dwell time (patch length / speed) of a surface point under the patch.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vishap.tactile.allocation import allocate
+from vishap.tactile.classifier import ContactClassifier, ContactState
+from vishap.tactile.config import SurfaceAttributes, TactileConfig, load_tactile_config
+from vishap.tactile.contact import ContactSample
+from vishap.tactile.examples import make_tracker
+from vishap.tactile.feedforward import ContactPredictor
+from vishap.tactile.jnd import JNDQuantiser
+from vishap.tactile.phsm import phsm_targets
+from vishap.tactile.pins import PinRenderer, nonuniformity_map, weave_tile
+from vishap.tactile.regions import RegionController
+from vishap.tactile.sensor import SensorArray, SensorFrame, hertz_radius
+from vishap.tactile.synth import Oscillators
+
+__all__ = ["DriveBlock", "TactileRenderer"]
+
+_STATES = list(ContactState)
+
+
+@dataclass
+class DriveBlock:
+    """Drive signals for one tick (or, from :meth:`TactileRenderer.render`, a whole sequence)."""
+
+    t0: float
+    fs: float
+    glove: np.ndarray            # (n,)
+    regions: np.ndarray          # (3, n)
+    pins: np.ndarray             # (24, n)
+    state: ContactState | list = ContactState.NONE
+    prearmed: bool | np.ndarray = False
+    envelope: float | np.ndarray = 0.0
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return self.glove.shape[-1]
+
+
+def _slew(cur, target, step):
+    return cur + np.minimum(np.maximum(target - cur, -step), step)
+
+
+def _slew1(cur: float, target: float, step: float) -> float:
+    return float(cur + min(max(target - cur, -step), step))
+
+
+class TactileRenderer:
+    """Contact samples in, per-channel drive signals out; state is public for inspection."""
+
+    #: span of recent centroid positions that counts as "in contact" for the regional weights, s
+    REGION_MEMORY_S = 0.15
+
+    def __init__(self, config: TactileConfig | None = None, *, surface: str | SurfaceAttributes = "fabric",
+                 tile: np.ndarray | None = None, umap: np.ndarray | None = None, seed: int = 0,
+                 feedforward: bool | None = None, heading_rad: float = 0.0):
+        self.cfg = cfg = config or load_tactile_config()
+        self.surface = cfg.surfaces[surface] if isinstance(surface, str) else surface
+        rng = np.random.default_rng(seed)
+        self.fs = cfg.allocation.sample_rate_hz
+        self.tick_s = 1.0 / cfg.pins.contact_rate_hz
+        self.array = SensorArray(cfg.sensor)
+        self.tracker = make_tracker(cfg, self.array)
+        self.classifier = ContactClassifier(cfg.classifier)
+        ff = cfg.feedforward if feedforward is None else cfg.feedforward.model_copy(update={"enabled": feedforward})
+        self.predictor = ContactPredictor(ff, slip_speed_m_s=cfg.classifier.slip_speed_m_s)
+        self.controller = RegionController(cfg)
+        self.jnd = JNDQuantiser(cfg.bands)
+        if tile is None:
+            tile = weave_tile(self.surface.texture_period_m, cfg.pins.tile_grid_m,
+                              amplitude_m=cfg.pins.amplitude_ref_m * (0.5 + self.surface.roughness),
+                              roughness_rms_m=0.05 * cfg.pins.amplitude_ref_m, rng=rng)
+        if umap is None:
+            umap = nonuniformity_map(cfg.pins, rng)
+        self.pins = PinRenderer(cfg.pins, tile, umap=umap)
+        self.heading_rad = heading_rad
+        self.osc_regions = Oscillators(3, self.fs)
+        self.osc_pins = Oscillators(2, self.fs)
+        self.osc_glove = Oscillators(1, self.fs)
+        self._carrier_hz = np.array([cfg.pins.f_low_hz, cfg.pins.f_high_hz])
+        self._ones2, self._zeros2 = np.ones(2), np.zeros(2)
+        self.reset()
+
+    # ------------------------------------------------------------------------------------------
+    def reset(self) -> None:
+        for part in (self.tracker, self.classifier, self.predictor, self.controller, self.jnd, self.pins,
+                     self.osc_regions, self.osc_pins, self.osc_glove):
+            part.reset()
+        self.osc_pins.amp[:] = 1.0  # the two HAPTEX carriers run at unit amplitude; pins scale them
+        self.clock = None            # time up to which samples have been produced
+        self.state = ContactState.NONE
+        self.effective_state = ContactState.NONE
+        self.state_since = 0.0
+        self.envelope = 0.0          # sleeve envelope (contact gate × state gain), continuity-limited
+        self.region_amp = np.zeros(3)
+        self.glove_support = 0.0
+        self.glove_osc = 0.0
+        self._glove_prev = 0.0
+        self._glove_lp = 0.0
+        self.pin_from = np.zeros((2, self.pins.n_pins))
+        self.pin_to = np.zeros((2, self.pins.n_pins))
+        self.pin_t = -math.inf
+        self.pin_prev = np.zeros((2, self.pins.n_pins))
+        self.features = None
+        self._phsm_key = None
+        self._x_hist: deque[tuple[float, float]] = deque()
+        self.prearmed = False
+        self.trace: list[dict] | None = None
+
+    def record(self, on: bool = True) -> None:
+        """Keep the per-tick control values (for :func:`~vishap.tactile.synth.synthesize` replays and plots)."""
+        self.trace = [] if on else None
+
+    # ------------------------------------------------------------------------------------------
+    def _sense(self, s: ContactSample):
+        force = float(s.normal_force_n) if (s.in_contact and np.isfinite(s.normal_force_n)) else 0.0
+        if not (np.isfinite(s.position).all() and np.isfinite(s.velocity).all()):
+            force = 0.0  # a corrupt sample is treated as no contact
+        force = max(force, 0.0)
+        centre = s.pad_position if s.pad_position is not None else np.array([self.cfg.sensor.default_pad_x_m, 0.0])
+        if s.contact_radius_m is not None:
+            radius = s.contact_radius_m
+        else:
+            radius = np.full(2, hertz_radius(force, self.cfg.sensor))
+        p = self.array.pressure(centre, radius, force)
+        f = self.tracker.update(SensorFrame(s.t, p))
+        if s.pad_position is None and f.in_contact:
+            f.centroid_velocity_m_s = s.velocity[:2].copy()
+            speed = s.tangential_speed
+            f.pulse_s = 2.0 * float(radius[0]) / speed if speed > 1e-6 else math.inf
+        return f, force, centre, radius if force > 0 else np.zeros(2)
+
+    def step(self, sample: ContactSample) -> DriveBlock:
+        """Advance one tick (normally 1 ms) and return that tick's drive signals."""
+        cfg, t = self.cfg, float(sample.t)
+        if not (np.isfinite(sample.position).all() and np.isfinite(sample.velocity).all()):
+            sample = ContactSample(t, np.nan_to_num(sample.position), 0.0, np.zeros(3), False)
+        if self.clock is None:
+            self.clock = t
+        n = int(round((t + self.tick_s - self.clock) * self.fs))
+        n = int(np.clip(n, 0, int(0.05 * self.fs)))  # catch up after a stall, at most 50 ms at once
+        dt = n / self.fs if n else self.tick_s
+        t0 = self.clock
+        self.clock = t0 + n / self.fs
+
+        feats, force, centre, radius = self._sense(sample)
+        self.features = feats
+        state = self.classifier.update(feats)
+        pred = self.predictor.update(sample)
+        self.prearmed = pred.prearm and state == ContactState.NONE
+        eff = state if state != ContactState.NONE else (pred.state if self.prearmed else ContactState.NONE)
+        if eff != self.effective_state:
+            self.state_since = t
+        self.state, self.effective_state = state, eff
+        regions = self.controller.update(eff, dt)
+
+        speed = sample.tangential_speed
+        key = (round(speed * 1e3), round(force * 1e2))  # 1 mm/s, 10 mN: far below one JND
+        if key != self._phsm_key:
+            self._phsm_key = key
+            tg = phsm_targets(self.surface, speed, force, cfg.bands, force_full_n=cfg.allocation.glove_force_full_n)
+            self._phsm = ([b.amplitude for b in tg], [b.frequency_hz for b in tg])
+        self.jnd.update(*self._phsm)
+        x_cm = 100.0 * (feats.centroid_m[0] if feats.in_contact else centre[0])
+        hist = self._x_hist
+        if not feats.in_contact:
+            hist.clear()
+        hist.append((t, x_cm))
+        while hist[0][0] < t - self.REGION_MEMORY_S:
+            hist.popleft()
+        xs = [x for _, x in hist]
+        alloc = allocate(eff, force, self.jnd.amplitude, self.jnd.frequency, regions, (min(xs), max(xs)),
+                         self.surface.roughness, cfg, time_in_state_s=t - self.state_since)
+
+        # continuity limits (§2.4): every amplitude is slew-limited
+        slew = cfg.control.amplitude_slew_per_s * dt
+        if state != ContactState.NONE:
+            gate = 1.0
+        elif self.prearmed:  # start the ramp so that it reaches prearm_level at the predicted contact
+            lvl = cfg.feedforward.prearm_level
+            gate = max(0.0, lvl - pred.time_to_contact_s * cfg.control.amplitude_slew_per_s)
+            gate = max(gate, min(self.envelope, lvl))
+        else:
+            gate = 0.0
+        self.envelope = _slew1(self.envelope, gate * alloc.sleeve_gain, slew)
+        self.region_amp = _slew(self.region_amp, self.envelope * alloc.region_amp, slew)
+        # glove support stays inside its 0–20 Hz band: critically damped 2nd-order low-pass at the band top
+        k = 1.0 - math.exp(-2.0 * math.pi * cfg.allocation.glove_band_hz[1] * dt)
+        self._glove_lp += k * (alloc.glove_support - self._glove_lp)
+        self.glove_support += k * (self._glove_lp - self.glove_support)
+        self.glove_osc = _slew1(self.glove_osc, alloc.glove_osc_amp, slew)
+
+        # HAPTEX pins: 1 kHz anti-aliased contact stream, 40 Hz renderer, linear interpolation between updates
+        self.pins.push_contact(sample.position[:2], sample.velocity[:2], force)
+        if self.pins.due(t):
+            a40, a320 = self.pins.update(t, centre, radius, heading_rad=self.heading_rad)
+            self.pin_from = self._pin_now(t)
+            self.pin_to = np.vstack([a40, a320])
+            self.pin_t = t
+        pin_amp = self._pin_now(t + dt) * self.envelope
+
+        block = self._synth(n, t0, regions, pin_amp, alloc.glove_osc_hz)
+        block.state, block.prearmed, block.envelope = state, self.prearmed, self.envelope
+        if self.trace is not None:
+            self.trace.append(dict(t=t, n=n, state=state.value, eff=eff.value, prearmed=self.prearmed, envelope=self.envelope,
+                                   force=force, region_amp=self.region_amp.copy(), beta=regions.beta_hz.copy(),
+                                   phi=regions.phi_rad.copy(), gamma=regions.gamma.copy(), pin_amp=pin_amp.copy(),
+                                   glove_support=self.glove_support, glove_osc=self.glove_osc,
+                                   glove_hz=alloc.glove_osc_hz, jnd_sent=self.jnd.sent))
+        return block
+
+    def _pin_now(self, t: float) -> np.ndarray:
+        if not np.isfinite(self.pin_t):
+            return self.pin_to.copy()
+        s = min(1.0, max(0.0, (t - self.pin_t) / self.pins.period_s))
+        return self.pin_from + (self.pin_to - self.pin_from) * s
+
+    def _synth(self, n: int, t0: float, regions, pin_amp: np.ndarray, glove_hz: float) -> DriveBlock:
+        reg = self.osc_regions.run(n, regions.beta_hz, self.region_amp, regions.phi_rad)
+        car = self.osc_pins.run(n, self._carrier_hz, self._ones2, self._zeros2)
+        r = self.osc_pins._r
+        a40 = self.pin_prev[0][:, None] + (pin_amp[0] - self.pin_prev[0])[:, None] * r
+        a320 = self.pin_prev[1][:, None] + (pin_amp[1] - self.pin_prev[1])[:, None] * r
+        self.pin_prev = pin_amp
+        pins = a40 * car[0] + a320 * car[1]
+        support = self._glove_prev + (self.glove_support - self._glove_prev) * r
+        self._glove_prev = self.glove_support
+        glove = support + self.osc_glove.run(n, [glove_hz], [self.glove_osc], [0.0])[0]
+        out = []
+        for x in (glove, reg, pins):
+            if not np.isfinite(x).all():  # never hand NaN/inf to a device
+                x = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
+            out.append(np.clip(x, -1.0, 1.0))
+        return DriveBlock(t0, self.fs, *out)
+
+    # ------------------------------------------------------------------------------------------
+    def render(self, samples, *, record: bool = True) -> DriveBlock:
+        """Run :meth:`step` over a sequence and concatenate the blocks."""
+        if record:
+            self.record(True)
+        blocks = [self.step(s) for s in samples]
+        if not blocks:
+            z = np.zeros(0)
+            return DriveBlock(0.0, self.fs, z, np.zeros((3, 0)), np.zeros((self.pins.n_pins, 0)))
+        return DriveBlock(
+            blocks[0].t0, self.fs,
+            np.concatenate([b.glove for b in blocks]),
+            np.concatenate([b.regions for b in blocks], axis=1),
+            np.concatenate([b.pins for b in blocks], axis=1),
+            state=[b.state for b in blocks],
+            prearmed=np.array([b.prearmed for b in blocks]),
+            envelope=np.array([b.envelope for b in blocks]),
+            extra={"trace": self.trace} if record else {},
+        )
