@@ -35,7 +35,7 @@ def test_detects_the_cap_centre_subpixel(seed):
     c = rng.uniform(70, 90, 2)
     ang = rng.uniform(-np.pi, np.pi)
     R = rng.uniform(6.5, 10)
-    tip = detect_fingertip(capsule(c, ang, R), 0.75 * R)  # the pipeline's K: 6 mm circle in an 8 mm cap
+    tip = detect_fingertip(capsule(c, ang, R), 0.6 * R)  # the pipeline's K: 4.8 mm circle in an 8 mm cap
     assert tip.found
     assert np.hypot(*(tip.uv - c)) < 0.5
     assert np.dot(tip.direction, [np.cos(ang), np.sin(ang)]) > 0.9

@@ -89,7 +89,8 @@ def test_segment_errors(toy):
         SegmentConfig(median=4)
 
 
-@pytest.mark.parametrize("cfg", [SegmentConfig(), SegmentConfig(dilate_tiles=0, median=3), SegmentConfig(bins=16, achromatic_bin=False)])
+@pytest.mark.parametrize("cfg", [SegmentConfig(), SegmentConfig(dilate_tiles=0, median=3), SegmentConfig(bins=16, achromatic_bin=False),
+                                 SegmentConfig(bins=16, sat_bins=4)])
 def test_sparse_tiles_give_exactly_the_dense_mask(toy, cfg):
     bg, fr, skin = toy
     seg = Segmenter(skin, cfg)

@@ -38,7 +38,7 @@ __all__ = ["FingertipConfig", "Fingertip", "detect_fingertip", "detect_fingertip
 class FingertipConfig:
     """Detector settings. ``r = K / z`` is computed by the caller (pipeline) from the rig and tracker."""
 
-    delta_r_frac: float = 0.35    # δr of the paper as a fraction of r: square half-side r2 = r + δr
+    delta_r_frac: float = 0.8     # δr of the paper as a fraction of r: square half-side r2 = r + δr
     ring_min: float = 2.0         # S_square ≥ ring_min·r2   (paper: 2)
     ring_max: float = 4.0         # S_square ≤ ring_max·r2   (paper: 4)
     max_diagonal_pairs: int = 1   # reject when N > this     (paper: 1)
@@ -58,6 +58,7 @@ class Fingertip:
     cap_radius_px: float = 0.0            # radius of the fitted cap circle (0 when not refined)
     score: float = 0.0
     n_candidates: int = 0
+    extremity_px: float = 0.0             # distance from the skin centroid of the searched mask
 
 
 @lru_cache(maxsize=64)
@@ -152,13 +153,14 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
     xs, ys, ring = xs[keep], ys[keep], ring[keep]
     score = np.full(xs.size, float(area)) if scores is None else scores[ys, xs].astype(np.float64)
     # step 10: best score first; ties broken by the prior or by extremity
+    m = cv2.moments(mask, binaryImage=True)
+    centroid = np.array([m["m10"], m["m01"]]) / max(m["m00"], 1.0)
+    ext = np.hypot(xs - centroid[0], ys - centroid[1])
     if prior_uv is not None:
         ref = np.asarray(prior_uv, dtype=np.float64)
         tie = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
     else:
-        m = cv2.moments(mask, binaryImage=True)
-        ref = np.array([m["m10"], m["m01"]]) / max(m["m00"], 1.0)
-        tie = -((xs - ref[0]) ** 2 + (ys - ref[1]) ** 2)
+        tie = -ext
     order = np.lexsort((tie, -score))
     alive = np.ones(xs.size, bool)
     tips = []
@@ -170,7 +172,7 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
         nd = np.hypot(*d)
         d = d / nd if nd > 0 else np.array([0.0, 1.0])
         tip = Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r), score=float(score[k]),
-                        n_candidates=int(xs.size))
+                        n_candidates=int(xs.size), extremity_px=float(ext[k]))
         if config.refine:
             _refine(mask, tip, r2)
         tips.append(tip)

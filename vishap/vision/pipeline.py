@@ -33,12 +33,14 @@ class PipelineConfig:
     fingertip: FingertipConfig = field(default_factory=FingertipConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
-    tip_circle_m: float = 0.006     # radius of the test circle at the fingertip (0.75 of an 8 mm cap): K = f · tip_circle_m
+    tip_circle_m: float = 0.0048    # radius of the test circle at the fingertip (0.6 of an 8 mm cap): K = f · tip_circle_m
     z_default_m: float = 0.6        # depth used for r = K/z before the first 3-D fix
     z_search_m: tuple[float, ...] = (0.45, 0.8)  # other depths tried when a full-frame search fails
     finger_radius_m: float = 0.008  # radius of the fingertip's cap (picks the index tip among candidates)
     max_candidates: int = 4         # fingertip candidates per view in a full-frame search
     learn_frames: int = 10
+    recheck_frames: int = 15        # while tracking, search the full frame every this many frames (0: never)
+    recheck_jump_px: float = 12.0   # a recheck result this far from the track restarts the track there
     tracking: bool = True           # False: always search the full frame
 
 
@@ -52,7 +54,7 @@ class TipEstimate:
     uv_right: np.ndarray | None = None
     confidence: float = 0.0
     timings: dict = field(default_factory=dict)
-    mode: str = "full"              # "learning", "full" or "tracked" (left camera)
+    mode: str = "full"              # "learning", "full", "tracked" or "recheck" (left camera)
     reason: str = ""
 
 
@@ -68,6 +70,7 @@ class VisionPipeline:
         self.K = float(rig.K_left[0, 0]) * self.config.tip_circle_m
         self._learn_buf: list = []
         self._z: float | None = None
+        self._since_full = 0
         self._size = rig.image_size
 
     # ------------------------------------------------------------------ background
@@ -121,7 +124,14 @@ class VisionPipeline:
         t1 = time.perf_counter()
         found, sp = self._choose_pair(cands, modes)
         for side in ("left", "right"):
-            self.trackers[side].update(t, found[side])
+            trk = self.trackers[side]
+            if found[side] is not None and modes[side] == "recheck" and trk.tracking \
+                    and np.hypot(*(found[side] - trk.kf.position)) > self.config.recheck_jump_px:
+                trk.kf.reset(found[side])  # the full-frame search found a better-ranked tip: move there
+                trk.t = t
+            else:
+                trk.update(t, found[side])
+        self._since_full = 0 if "tracked" not in modes.values() else self._since_full + 1
         timings["stereo_ms"] = (time.perf_counter() - t1) * 1e3
         timings["total_ms"] = (time.perf_counter() - t0) * 1e3
         conf = min(self.trackers["left"].confidence, self.trackers["right"].confidence)
@@ -137,7 +147,7 @@ class VisionPipeline:
         over the full frame offers several, ranked by the detector (score, then extremity: index
         tip before thumb and curled knuckles). A pair must pass the epipolar and disparity checks
         and its fitted cap radii, scaled by the triangulated depth, must be within 0.5–1.6 of
-        ``finger_radius_m``; the pair with the lowest rank sum wins.
+        ``finger_radius_m``; the pair with the lowest rank sum wins (ties: the larger extremity).
         """
         cfg = self.config
         L, R = cands["left"], cands["right"]
@@ -155,7 +165,8 @@ class VisionPipeline:
                 if any(not (0.5 <= q <= 1.6) for q in ratio):
                     reason = "cap radius not a fingertip's"
                     continue
-                cost = il + ir + 0.01 * sp.epipolar_px
+                cost = il + ir - (tl.extremity_px + tr.extremity_px) / (1.0 + tl.extremity_px + tr.extremity_px) \
+                    + 0.01 * sp.epipolar_px
                 if cost < best_cost:
                     best, best_cost, best_sp = (tl, tr), cost, sp
         if best is not None:
@@ -181,20 +192,26 @@ class VisionPipeline:
         r = self.K / z
         roi = trk.window(self._size, extra_px=2 * r * (1 + cfg.fingertip.delta_r_frac)) if pred is not None else None
         mode = "tracked" if roi is not None else "full"
+        if roi is not None and cfg.recheck_frames and self._since_full >= cfg.recheck_frames:
+            roi, mode = None, "recheck"  # a periodic full-frame search: escape a lock on the wrong finger
         if roi is None:
             roi = (0, 0, self._size[0], self._size[1])
         roi = snap_roi(roi, seg.config.tile, self._size)
         ts = time.perf_counter()
         mask = seg.segment(image, roi)
         td = time.perf_counter()
-        prior = None if pred is None else pred - roi[:2]
-        zs = [z] if mode == "tracked" or self._z is not None else [z, *cfg.z_search_m]
-        tips = []
-        for zz in zs:
-            tips = detect_fingertips(mask, self.K / zz, cfg.fingertip, prior_uv=prior,
-                                     max_tips=1 if mode == "tracked" else cfg.max_candidates)
-            if tips:
-                break
+        prior = None if pred is None or mode == "recheck" else pred - roi[:2]
+        n_max = 1 if mode == "tracked" else cfg.max_candidates
+        if mode != "full" or self._z is not None:
+            tips = detect_fingertips(mask, self.K / z, cfg.fingertip, prior_uv=prior, max_tips=n_max)
+        else:  # first acquisition, depth unknown: candidates at each depth of the working range
+            tips = []
+            for zz in (z, *cfg.z_search_m):
+                for tip in detect_fingertips(mask, self.K / zz, cfg.fingertip, prior_uv=prior, max_tips=n_max):
+                    if all(np.hypot(*(tip.uv - o.uv)) > tip.radius_px for o in tips):
+                        tips.append(tip)
+            tips.sort(key=lambda tp: -tp.extremity_px)
+            tips = tips[:n_max]
         te = time.perf_counter()
         timings[f"segment_{side}_ms"] = (td - ts) * 1e3
         timings[f"detect_{side}_ms"] = (te - td) * 1e3

@@ -41,6 +41,7 @@ class SegmentConfig:
 
     tile: int = 5                   # tile side, pixels (paper: small tiles; issue: 5×5)
     bins: int = 8                   # hue bins (issue: 8)
+    sat_bins: int = 1               # saturation bins per hue bin (1 = the paper's hue-only histogram)
     match_threshold: float = 0.6    # intersection below this → foreground tile
     median: int = 5                 # median filter aperture (odd; 1 = off)
     dilate_tiles: int = 1           # also test skin in tiles this many tiles away from a foreground tile
@@ -49,7 +50,9 @@ class SegmentConfig:
     min_value: int = 30
 
     def __post_init__(self) -> None:
-        if self.tile < 1 or self.bins < 1:
+        if self.bins * self.sat_bins > 254:
+            raise VisionError(f"bins × sat_bins must be below 255, got {self.bins * self.sat_bins}")
+        if self.tile < 1 or self.bins < 1 or self.sat_bins < 1:
             raise VisionError(f"tile and bins must be positive, got tile={self.tile} bins={self.bins}")
         if self.median < 1 or self.median % 2 == 0:
             raise VisionError(f"median aperture must be odd and positive, got {self.median}")
@@ -57,22 +60,32 @@ class SegmentConfig:
             raise VisionError(f"match_threshold must be in (0, 1], got {self.match_threshold}")
 
 
-def _bin_lut(bins: int) -> np.ndarray:
-    return np.minimum(np.arange(256) * bins // 180, bins - 1).astype(np.uint8)
+def _bin_lut(bins: int, sat_bins: int = 1) -> np.ndarray:
+    """Hue (0…179) → hue bin × sat_bins."""
+    return (np.minimum(np.arange(256) * bins // 180, bins - 1) * sat_bins).astype(np.uint8)
+
+
+def _sat_lut(cfg: SegmentConfig) -> np.ndarray:
+    """Saturation (0…255) → saturation bin (0 below the achromatic gate, which is handled apart)."""
+    s = np.clip(np.arange(256) - cfg.min_saturation, 0, None)
+    return np.minimum(s * cfg.sat_bins // max(1, 256 - cfg.min_saturation), cfg.sat_bins - 1).astype(np.uint8)
 
 
 def hue_bin_image(hsv: np.ndarray, cfg: SegmentConfig, lut: np.ndarray | None = None) -> np.ndarray:
-    """Per-pixel histogram bin (uint8): hue bin 0…bins−1, or ``bins`` for achromatic pixels."""
-    lut = _bin_lut(cfg.bins) if lut is None else lut
+    """Per-pixel histogram bin (uint8): chromatic bins ``0…bins·sat_bins−1``, then one bin for
+    achromatic pixels (when ``achromatic_bin``)."""
+    lut = _bin_lut(cfg.bins, cfg.sat_bins) if lut is None else lut
     b = cv2.LUT(np.ascontiguousarray(hsv[..., 0]), lut)
+    if cfg.sat_bins > 1:
+        b = cv2.add(b, cv2.LUT(np.ascontiguousarray(hsv[..., 1]), _sat_lut(cfg)))
     if cfg.achromatic_bin:
         chroma = cv2.inRange(hsv, (0, cfg.min_saturation, cfg.min_value), (255, 255, 255))
-        b = cv2.min(cv2.max(b, cv2.bitwise_not(chroma)), cfg.bins)
+        b = cv2.min(cv2.max(b, cv2.bitwise_not(chroma)), cfg.bins * cfg.sat_bins)
     return b
 
 
 def _n_bins(cfg: SegmentConfig) -> int:
-    return cfg.bins + (1 if cfg.achromatic_bin else 0)
+    return cfg.bins * cfg.sat_bins + (1 if cfg.achromatic_bin else 0)
 
 
 class _TileIndex:
@@ -136,7 +149,8 @@ class Segmenter:
         # one achromatic gate for histograms and skin test
         if (self.skin.min_saturation, self.skin.min_value) != (c.min_saturation, c.min_value):
             self.config = c = replace(c, min_saturation=self.skin.min_saturation, min_value=self.skin.min_value)
-        self._lut = _bin_lut(c.bins)
+        self._lut = _bin_lut(c.bins, c.sat_bins)
+        self._slut = _sat_lut(c)
         self._index = _TileIndex(c.tile, _n_bins(c))
         k = 2 * c.dilate_tiles + 1
         self._dilate_kernel = np.ones((k, k), np.uint8) if c.dilate_tiles > 0 else None
@@ -237,8 +251,10 @@ class Segmenter:
         idx = ((iy * t) * w + ix * t)[:, None] + off[None, :]          # (T, t²) pixel indices
         px = hsv.reshape(-1, 3)[idx]                                    # (T, t², 3)
         b = self._lut[px[..., 0]]
+        if c.sat_bins > 1:
+            b = b + self._slut[px[..., 1]]
         if c.achromatic_bin:
-            b = np.where((px[..., 1] >= c.min_saturation) & (px[..., 2] >= c.min_value), b, c.bins)
+            b = np.where((px[..., 1] >= c.min_saturation) & (px[..., 2] >= c.min_value), b, c.bins * c.sat_bins)
         nb = _n_bins(c)
         hist = np.bincount((np.arange(sel.size)[:, None] * nb + b).ravel(), minlength=sel.size * nb)
         x0, y0 = roi[0] // t, roi[1] // t
