@@ -157,6 +157,8 @@ def run_approach(
     n_ticks = int(math.ceil(traj.duration / dt))
     if stop_after_contact_s is not None:
         n_ticks = min(n_ticks, int(math.ceil((traj.t_surface + stop_after_contact_s + 0.3) / dt)))
+    P_f = np.array([traj.position(k * dt) for k in range(n_ticks + 1)])  # the finger, sampled once
+    V_f = np.gradient(P_f, dt, axis=0)
     t_next_cam = 0.0
     pending: list[tuple[float, float, np.ndarray | None]] = []  # (arrival, capture time, measurement)
     lam_state = 0  # 0: free (Λ = I), 1: touching the surface (λ_z = 0), 2: pressed in (mode's gain)
@@ -176,7 +178,7 @@ def run_approach(
         t = k * dt
         # camera: capture now, deliver after the latency
         if t >= t_next_cam - 1e-12:
-            p_true = traj.position(t)
+            p_true = P_f[k]
             meas = None if rng.random() < vision.dropout else p_true + rng.normal(0.0, vision.noise_m, 3)
             pending.append((t + vision.latency_s, t, meas))
             t_next_cam += 1.0 / vision.rate_hz
@@ -189,7 +191,7 @@ def run_approach(
             it = world.update(t_cap, meas, p_dev)
             X_d = it.X_d
         # the finger pushes on the passive object
-        p_f, v_f = traj.position(t), traj.velocity(t)
+        p_f, v_f = P_f[k], V_f[k]
         s = world.subject or obj
         F_pad = pad.force_on_device(p_f, v_f, p_dev, v_dev, s.normal, half)
         plant.apply_tip_force(F_pad)
@@ -234,7 +236,7 @@ def run_approach(
 
     in_place, lead, err = False, None, None
     if t_contact is not None:
-        p_c = traj.position(t_contact)
+        p_c = P_f[k_contact]
         ideal = obj.centre if obj.mode.target == "centre" else obj.project(p_c)
         dist = np.linalg.norm(dev[: k_contact + 1] - ideal, axis=1)
         err = float(dist[-1])
@@ -256,7 +258,7 @@ def run_approach(
     log = None
     if record:
         log = {"t": np.arange(n_ticks) * dt, "device": dev, "X_d": xd_log, "depth_finger": d_f, "force_n": f_n,
-               "touching": touching, "finger": np.array([traj.position(k * dt) for k in range(n_ticks)])}
+               "touching": touching, "finger": P_f[:n_ticks]}
     return ApproachResult(
         traj.object_name, obj.kind, traj.speed_m_s, t_contact, touched, in_place, lead, err,
         cost / max(n_ticks, 1) * 1e6, order, d_f[sel], f_n[sel], through, ratio, log,

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "MeetingPoint", "make_predictor", "contact_point", "PREDICTORS"]
+__all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "MeetingPoint", "PathExtrapolator", "make_predictor", "contact_point", "PREDICTORS"]
 
 
 class LastSample:
@@ -173,6 +173,46 @@ class MeetingPoint:
         self.c = self.c + g * (c - self.c)
         self.var *= 1.0 - g
         return self.c.copy()
+
+
+class PathExtrapolator:
+    """Where the finger's *path* meets a surface: the recent raw samples' tangential coordinates
+    fitted as a quadratic in their height above the surface and evaluated at height 0.
+
+    The path's shape does not depend on timing, so latency and the finger's deceleration do not
+    bias it, and a bowed reach is followed. Returns the point and its variance from the fit's
+    leverage and the measurement noise, or None with too few samples or too little descent.
+    """
+
+    def __init__(self, *, window_s: float = 0.25, meas_std_m: float = 0.0008, min_span_m: float = 0.006):
+        self.window_s = float(window_s)
+        self.var_meas = float(meas_std_m) ** 2
+        self.min_span = float(min_span_m)
+        self.reset()
+
+    def reset(self) -> None:
+        self.samples: list[tuple[float, np.ndarray]] = []
+
+    def observe(self, t: float, p_robot) -> None:
+        if p_robot is None:
+            return
+        self.samples.append((float(t), np.asarray(p_robot, dtype=float).copy()))
+        while self.samples and self.samples[0][0] < t - self.window_s:
+            self.samples.pop(0)
+
+    def contact(self, centre, R_robot_obj) -> tuple[np.ndarray, float] | None:
+        if len(self.samples) < 4:
+            return None
+        q = (np.array([p for _, p in self.samples]) - centre) @ R_robot_obj
+        h = q[:, 2]
+        if h[-1] <= 0 or h[0] - h[-1] < self.min_span or np.any(np.diff(h) > 0.002):
+            return None  # not descending steadily towards the surface
+        deg = 2 if len(h) >= 6 and h.max() - h.min() > 2 * self.min_span else 1
+        X = np.vander(h, deg + 1)
+        coef, *_ = np.linalg.lstsq(X, q[:, :2], rcond=None)
+        lev = float(np.linalg.inv(X.T @ X)[-1, -1])
+        uv = coef[-1]
+        return centre + R_robot_obj[:, 0] * uv[0] + R_robot_obj[:, 1] * uv[1], self.var_meas * lev
 
 
 PREDICTORS = {"none": LastSample, "cv": FiniteDifference, "kalman": KalmanPredictor}

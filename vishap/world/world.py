@@ -26,7 +26,7 @@ import numpy as np
 
 from vishap._core.check import as_array
 from vishap.world.force_laws import DEFAULT_MAX_FORCE_N, make_law
-from vishap.world.predictor import MeetingPoint, contact_point, make_predictor
+from vishap.world.predictor import MeetingPoint, PathExtrapolator, contact_point, make_predictor
 from vishap.world.scene import Scene, SceneObject
 
 __all__ = ["Interaction", "World", "HANDOVERS"]
@@ -84,7 +84,13 @@ class World:
         path_margin_m: float = 0.003,
         clearance_m: float = 0.01,
         max_force_n: float = DEFAULT_MAX_FORCE_N,
+        contact_model: str = "ray",
     ):
+        if contact_model not in ("ray", "path"):
+            raise ValueError(f"contact_model must be 'ray' or 'path', got {contact_model!r}")
+        self.contact_model = contact_model
+        self.heading_confirm = 1  # updates in a row the finger must head for an object to switch to it
+        self.path = PathExtrapolator()
         if handover not in HANDOVERS:
             raise ValueError(f"handover must be one of {HANDOVERS}, got {handover!r}")
         self.scene = scene
@@ -107,6 +113,8 @@ class World:
         self.held: np.ndarray | None = None
         self.X_d: np.ndarray | None = None
         self.meeting.reset()
+        self.path.reset()
+        self._heading: str | None = None
         if hasattr(self.predictor, "reset"):
             self.predictor.reset()
 
@@ -116,20 +124,24 @@ class World:
         if p_robot_finger is not None:
             p_robot_finger = as_array(p_robot_finger, (3,), "p_robot_finger")
         self.predictor.observe(t, p_robot_finger)
+        self.path.observe(t, p_robot_finger)
         if not self.predictor.ready:
             X = self.X_d if self.X_d is not None else self.scene.objects[0].centre.copy()
             return Interaction(t, None, None, X.copy(), float("-inf"), False, False, _UP.copy())
         p, v = self.predictor.state_at(t + self.latency_s)
         distances = {o.name: o.signed_distance(p) for o in self.scene.objects}
-        subj = self._choose(distances)
+        subj = self._choose(distances, self._heading_to(p, v))
         h = subj.height(p)
         depth = -h
         in_contact = depth >= -self.contact_margin_m and subj.inside_extent(p, self.contact_margin_m)
         imminent = distances[subj.name] < self.imminent_m
         c, tau = contact_point(p, v, subj.normal, subj.offset, horizon_s=self.horizon_s)
         c = subj.project(c)
+        fit = self.path.contact(subj.centre, subj.R) if self.contact_model == "path" and tau is not None else None
         if tau is None:
             self.meeting.reset()
+        elif fit is not None:  # the path's own extrapolation, fused by its variance
+            c = subj.project(self.meeting.update(fit[0], 0.0, fit[1], 0.0))
         elif hasattr(self.predictor, "cov_at"):  # fuse successive predictions by their uncertainty
             P = self.predictor.cov_at(t + self.latency_s)
             c = subj.project(self.meeting.update(c, tau, np.trace(P[:3, :3]) / 3, np.trace(P[3:, 3:]) / 3))
@@ -144,13 +156,28 @@ class World:
         return Interaction(t, subj.name, subj.mode_name, X.copy(), depth, imminent, in_contact,
                            subj.normal.copy(), distances, c, tau, via)
 
-    def _choose(self, distances: dict[str, float]) -> SceneObject:
+    def _heading_to(self, p, v) -> SceneObject | None:
+        """The object whose surface patch the finger's straight-line motion meets first (or None)."""
+        best, best_tau = None, self.horizon_s
+        for o in self.scene.objects:
+            c, tau = contact_point(p, v, o.normal, o.offset, horizon_s=self.horizon_s)
+            if tau is not None and tau < best_tau and o.inside_extent(c, self.path_margin_m):
+                best, best_tau = o, tau
+        return best
+
+    def _choose(self, distances: dict[str, float], heading: SceneObject | None = None) -> SceneObject:
+        """Nearest object with hysteresis; an object the finger heads for twice running wins early."""
         best = min(self.scene.objects, key=lambda o: distances[o.name])
         cur = self.subject
         if cur is None:
             return self._set_subject(best)
-        if best is cur or distances[cur.name] <= self.contact_margin_m:
+        if distances[cur.name] <= self.contact_margin_m:
             return cur  # never switch while touching the current subject
+        prev, self._heading = self._heading, None if heading is None else heading.name
+        if heading is not None and heading is not cur and (prev == heading.name or self.heading_confirm == 1):
+            return self._set_subject(heading)
+        if heading is cur or best is cur:
+            return cur
         if distances[best.name] < distances[cur.name] - self.hysteresis_m:
             return self._set_subject(best)
         return cur
