@@ -111,3 +111,19 @@ def test_predictors_follow_constant_velocity_and_missed_frames():
     assert tau == pytest.approx(0.1) and np.allclose(c, [0.21, 0.0, -0.15])
     c, tau = contact_point([0.2, 0.0, -0.10], [0.1, 0.0, 0.5], [0, 0, 1], -0.15, horizon_s=0.5)
     assert tau is None and np.allclose(c, [0.2, 0.0, -0.15])
+
+
+def test_contact_render_gates_the_law_and_the_object_gain():
+    scene = load_scene("wall")
+    w = World(scene, predictor="none", engage_m=0.0003)
+    far = w.update(0.0, [0.2, 0.0, -0.10])
+    assert w.contact_render(np.array([0.2, 0.0, -0.151]), None, far)[0] is None  # finger far: no law
+    near = w.update(0.1, [0.2, 0.0, -0.145])
+    F, lam, R = w.contact_render(np.array([0.2, 0.0, -0.1501]), np.zeros(3), near)
+    assert F[2] == pytest.approx(800.0 * 0.0001) and lam == (1.0, 1.0, 0.0)  # sagging: keep lateral servo
+    F, lam, R = w.contact_render(np.array([0.2, 0.0, -0.152]), np.zeros(3), near)
+    assert F[2] == pytest.approx(1.6) and lam == (0.0, 0.0, 0.0) and np.allclose(R, np.eye(3))  # pressed: slide
+    assert w.contact_render(np.array([0.2, 0.0, -0.149]), None, near)[0] is None  # above the surface
+    kb = World(load_scene("panel"), predictor="none")
+    it = kb.update(0.0, [0.23, 0.04, -0.149])
+    assert kb.contact_render(np.array([0.23, 0.04, -0.152]), None, it)[1] == (1.0, 1.0, 0.0)  # a key stays put

@@ -10,7 +10,8 @@ turns each sample into ``X_d``; the servo (:class:`vishap.robot.servo.ServoLoop`
 Contact rendering follows Eq. 8–9: while the device is under the subject's surface (and the world
 announces an imminent or current interaction) the object gain ``ᴼΛ`` sets λ_z = 0 and the force
 law enters as the servo's extra force; once pushed in deeper than ``engage_m`` the lateral gains
-take the mode's ``contact_gain`` (0 for a wall: the finger drags the device, sliding is free).
+take the mode's ``contact_gain`` (0 for a wall: the finger drags the device, sliding is free) —
+all decided by :meth:`World.contact_render`.
 
 Per approach we measure (:class:`ApproachResult`): the contact time (the pad first touches the
 passive object, or the finger crosses the surface if it misses), whether the device was in place
@@ -129,7 +130,6 @@ def run_approach(
     pad: FingerPad | None = None,
     seed: int = 0,
     in_place_m: float = 0.001,
-    engage_m: float = 0.0003,
     substeps: int = 1,
     stop_after_contact_s: float | None = None,
     record: bool = False,
@@ -161,7 +161,7 @@ def run_approach(
     V_f = np.gradient(P_f, dt, axis=0)
     t_next_cam = 0.0
     pending: list[tuple[float, float, np.ndarray | None]] = []  # (arrival, capture time, measurement)
-    lam_state = 0  # 0: free (Λ = I), 1: touching the surface (λ_z = 0), 2: pressed in (mode's gain)
+    lam_state = None  # the object gain in use: None (identity, free motion) or a diagonal
     dev = np.empty((n_ticks, 3))
     subj = np.empty(n_ticks, dtype=object)
     f_n = np.zeros(n_ticks)
@@ -196,24 +196,13 @@ def run_approach(
         F_pad = pad.force_on_device(p_f, v_f, p_dev, v_dev, s.normal, half)
         plant.apply_tip_force(F_pad)
         c0 = _time.perf_counter()
-        # the subject's law renders contact while the device is under its surface; the lateral gain
-        # is released (mode's contact_gain) only once the finger has clearly pushed it in
-        F_law = None
-        state = 0
-        if world.law is not None and (it.imminent or it.in_contact):
-            depth = world.law.depth(p_dev)
-            if depth > 0.0:
-                F_law = world.force_robot(p_dev, v_dev)
-                state = 2 if depth > engage_m else 1
-        if state != lam_state:
-            if state == 0:
-                ctrl.set_lambda(None)
-                if world.law is not None:
-                    world.law.reset()
-            else:
-                lam, R = world.contact_gain()
-                ctrl.set_lambda(lam if state == 2 else (1.0, 1.0, 0.0), R)
-            lam_state = state
+        # the subject's law renders contact while the device is under its surface (Eq. 8-9)
+        F_law, lam, R = world.contact_render(p_dev, v_dev, it)
+        if lam != lam_state:
+            ctrl.set_lambda(lam, None if lam is None else R)
+            if lam is None and world.law is not None:
+                world.law.reset()
+            lam_state = lam
         servo.tick(t, X_d, F_law)
         cost += _time.perf_counter() - c0
         F = ctrl.F_pd

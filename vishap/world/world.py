@@ -34,6 +34,8 @@ __all__ = ["Interaction", "World", "HANDOVERS"]
 HANDOVERS = ("hold", "blend", "track")
 _UP = np.array([0.0, 0.0, 1.0])
 _ZERO3 = np.zeros(3)
+_EYE3 = np.eye(3)
+_SHALLOW = (1.0, 1.0, 0.0)
 
 
 @dataclass
@@ -66,7 +68,9 @@ class World:
     ``observe``/``state_at``), ``handover`` (``hold``, ``blend``, ``track``), ``latency_s`` (age of a
     finger sample when it arrives: the prediction is made for ``t + latency_s``), ``imminent_m``,
     ``hysteresis_m``, ``hold_m``, ``horizon_s`` (furthest look-ahead), ``contact_margin_m``,
-    ``path_margin_m`` and ``clearance_m`` for routing, ``max_force_n`` for the laws.
+    ``path_margin_m`` and ``clearance_m`` for routing, ``max_force_n`` for the laws, ``contact_model``
+    (``ray``: the predicted straight-line motion meets the surface; ``path``: the recent path is
+    extrapolated in height), ``engage_m`` (depth beyond which the mode's lateral contact gain applies).
     """
 
     def __init__(
@@ -85,10 +89,12 @@ class World:
         clearance_m: float = 0.01,
         max_force_n: float = DEFAULT_MAX_FORCE_N,
         contact_model: str = "ray",
+        engage_m: float = 0.0003,
     ):
         if contact_model not in ("ray", "path"):
             raise ValueError(f"contact_model must be 'ray' or 'path', got {contact_model!r}")
         self.contact_model = contact_model
+        self.engage_m = float(engage_m)
         self.heading_confirm = 1  # updates in a row the finger must head for an object to switch to it
         self.path = PathExtrapolator()
         if handover not in HANDOVERS:
@@ -237,6 +243,25 @@ class World:
         if self.law is None:
             return np.zeros(3)
         return self.law.force_robot(p_robot_device, _ZERO3 if v_robot_device is None else v_robot_device)
+
+    def contact_render(self, p_robot_device, v_robot_device, interaction: Interaction | None):
+        """Servo-rate contact rendering (Eq. 8–9): ``(F_law or None, ᴼΛ diagonal or None, R_robot_obj)``.
+
+        The law acts while the world announces an imminent or current interaction and the device is
+        under the subject's surface; λ_z is then 0 (the law gives the normal force). The mode's
+        lateral gains (``contact_gain``) apply only once the device is pushed in deeper than
+        ``engage_m`` — a device sagging a hair below the surface while it waits keeps its lateral
+        servo. ``None`` for Λ means the identity (free motion); call ``law.reset()`` when leaving.
+        """
+        law = self.law
+        if law is None or interaction is None or not (interaction.imminent or interaction.in_contact):
+            return None, None, _EYE3
+        depth = law.depth(p_robot_device)
+        if depth <= 0.0:
+            return None, None, _EYE3
+        F = law.force_robot(p_robot_device, _ZERO3 if v_robot_device is None else v_robot_device)
+        lam = law.lambda_contact if depth > self.engage_m else _SHALLOW
+        return F, lam, self.subject.R
 
     def contact_gain(self) -> tuple[tuple[float, float, float], np.ndarray]:
         """(ᴼΛ diagonal, R_robot_obj) for the servo while the subject's law renders contact (Eq. 9)."""
