@@ -1,13 +1,12 @@
 import json
 
-import cv2
 import numpy as np
 import pytest
 
 from vishap.cli import main
 from vishap.vision.evaluate import SequenceReader, evaluate_sequence, fit_skin_model, segmentation_ratios
 from vishap.vision.rig import StereoRig
-from vishap.vision.toy import ToyScene
+from vishap.vision.toy import write_sequence
 
 
 def test_segmentation_ratios_count_pixels():
@@ -16,31 +15,11 @@ def test_segmentation_ratios_count_pixels():
     assert segmentation_ratios(mask, labels).tolist() == [2, 1, 1, 4]
 
 
-def _write_toy_sequence(folder, seed, n=16, learn=4):
-    """A labelled sequence in the folder layout 'vishap synth' writes."""
-    rig = StereoRig.from_fov(320, 240, 60.0, 0.06)
-    scene = ToyScene(rig, seed=seed)
-    for d in ("left", "right", "labels/left", "labels/right"):
-        (folder / d).mkdir(parents=True)
-    rig.save(folder / "rig.yaml")
-    gt = {k: [] for k in ("t", "tip_cam", "tip_uv_left", "tip_uv_right", "tip_visible_left", "tip_visible_right")}
-    for i in range(n):
-        p = np.array([-0.03 + 0.003 * i, 0.005 * i, 0.45])
-        f = scene.frame(i / 30, p, hand=i >= learn)
-        name = f"{i:06d}.png"
-        for sub, img in (("left", f.left), ("right", f.right), ("labels/left", f.labels_left), ("labels/right", f.labels_right)):
-            cv2.imwrite(str(folder / sub / name), img)
-        for k, v in (("t", i / 30), ("tip_cam", p), ("tip_uv_left", f.tip_uv_left), ("tip_uv_right", f.tip_uv_right),
-                     ("tip_visible_left", i >= learn), ("tip_visible_right", i >= learn)):
-            gt[k].append(v)
-    np.savez(folder / "gt.npz", **{k: np.array(v) for k, v in gt.items()})
-
-
 @pytest.fixture(scope="module")
 def toy_sequences(tmp_path_factory):
     root = tmp_path_factory.mktemp("seq")
     for s in (1, 2):
-        _write_toy_sequence(root / f"s{s}", seed=s)
+        write_sequence(root / f"s{s}", seed=s)
     return root
 
 

@@ -99,3 +99,20 @@ def test_sparse_tiles_give_exactly_the_dense_mask(toy, cfg):
         a = seg.segment(fr.left, roi, method="sparse")
         b = seg.segment(fr.left, roi, method="dense")
         assert a.any() and np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("cfg", [SegmentConfig(), SegmentConfig(bins=16, sat_bins=4, median=3, dilate_tiles=0)])
+def test_torch_batch_backend_gives_the_same_masks(toy, cfg):
+    pytest.importorskip("kornia")
+    import cv2
+
+    from vishap.vision.segment_torch import TorchSegmenter
+
+    bg, fr, skin = toy
+    seg = Segmenter(skin, cfg)
+    seg.learn([f.left for f in bg])
+    frames = [fr.left, fr.right, bg[0].left]
+    ref = np.stack([seg.segment(f) for f in frames])
+    hsv = np.stack([cv2.cvtColor(f, cv2.COLOR_BGR2HSV) for f in frames])
+    got = TorchSegmenter(skin, seg.config, seg.background).segment(hsv)
+    assert ref[0].any() and got.shape == ref.shape and np.array_equal(got, ref)

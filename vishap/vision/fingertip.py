@@ -153,15 +153,16 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
     xs, ys, ring = xs[keep], ys[keep], ring[keep]
     score = np.full(xs.size, float(area)) if scores is None else scores[ys, xs].astype(np.float64)
     # step 10: best score first; ties broken by the prior or by extremity
-    m = cv2.moments(mask, binaryImage=True)
-    centroid = np.array([m["m10"], m["m01"]]) / max(m["m00"], 1.0)
-    ext = np.hypot(xs - centroid[0], ys - centroid[1])
     if prior_uv is not None:
         ref = np.asarray(prior_uv, dtype=np.float64)
         tie = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
+        ext = np.zeros(xs.size)
     else:
+        m = cv2.moments(mask, binaryImage=True)
+        centroid = np.array([m["m10"], m["m01"]]) / max(m["m00"], 1.0)
+        ext = np.hypot(xs - centroid[0], ys - centroid[1])
         tie = -ext
-    order = np.lexsort((tie, -score))
+    order = [int(np.argmin(tie - 1e9 * score))] if max_tips == 1 else np.lexsort((tie, -score))
     alive = np.ones(xs.size, bool)
     tips = []
     for k in order:
@@ -235,7 +236,7 @@ def _refine(mask: np.ndarray, tip: Fingertip, r2: int) -> None:
             return
         c = c_new
     tip.uv = c
-    tip.direction = _finger_direction(mask, c, r2 + 2.0, d)
+    tip.direction = d
     tip.cap_radius_px = rad
 
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from vishap.vision.rig import StereoRig
 
-__all__ = ["ToyScene", "ToyFrame"]
+__all__ = ["ToyScene", "ToyFrame", "write_sequence"]
 
 SKIN_BGR = (120, 150, 215)     # hue ≈ 10 (OpenCV), a light skin tone
 TABLE_BGR = (95, 140, 80)      # greenish table
@@ -96,3 +96,29 @@ class ToyScene:
         right, lr = self._draw("right", tip_cam, direction_cam, light, device_uv, hand)
         uvl, uvr = self.rig.project(np.asarray(tip_cam, float)[None])
         return ToyFrame(t, left, right, ll, lr, np.asarray(tip_cam, float), uvl[0], uvr[0])
+
+
+def write_sequence(folder, *, seed: int = 0, frames: int = 16, learn: int = 4, size=(320, 240),
+                   skinlike_table: bool = False, light_drop: float = 0.0, speed_m_s: float = 0.09) -> None:
+    """Write a labelled toy sequence in the folder layout ``vishap synth`` uses (tests, benchmarks)."""
+    from pathlib import Path
+
+    folder = Path(folder)
+    rig = StereoRig.from_fov(size[0], size[1], 60.0, 0.06)
+    scene = ToyScene(rig, seed=seed, skinlike_table=skinlike_table)
+    for d in ("left", "right", "labels/left", "labels/right"):
+        (folder / d).mkdir(parents=True, exist_ok=True)
+    rig.save(folder / "rig.yaml")
+    gt = {k: [] for k in ("t", "tip_cam", "tip_uv_left", "tip_uv_right", "tip_visible_left", "tip_visible_right")}
+    for i in range(frames):
+        t = i / 30
+        p = np.array([-0.03 + speed_m_s * t, 0.15 * speed_m_s * t, 0.45 + 0.1 * speed_m_s * t])
+        f = scene.frame(t, p, hand=i >= learn, light=1.0 - light_drop * (i >= learn))
+        name = f"{i:06d}.png"
+        for sub, img in (("left", f.left), ("right", f.right), ("labels/left", f.labels_left),
+                         ("labels/right", f.labels_right)):
+            cv2.imwrite(str(folder / sub / name), img)
+        for k, v in (("t", t), ("tip_cam", p), ("tip_uv_left", f.tip_uv_left), ("tip_uv_right", f.tip_uv_right),
+                     ("tip_visible_left", i >= learn), ("tip_visible_right", i >= learn)):
+            gt[k].append(v)
+    np.savez(folder / "gt.npz", **{k: np.array(v) for k, v in gt.items()})
