@@ -42,7 +42,8 @@ class FaultSpec(Schema):
 
 class DemoConfig(Schema):
     scene: Literal["wall", "button", "fabric"] = "wall"
-    frames: int = Field(default=240, ge=12, description="camera frames to simulate (incl. background frames)")
+    frames: int | None = Field(default=None, ge=12,
+                               description="camera frames to simulate (incl. background frames); None: the demo's script length")
     seed: int = Field(default=0, ge=0)
     width: int = Field(default=320, ge=64, le=1920, description="image width, pixels")
     height: int = Field(default=240, ge=48, le=1080, description="image height, pixels")
@@ -71,6 +72,10 @@ class DemoConfig(Schema):
 
     @model_validator(mode="after")
     def _rates(self):
+        if self.frames is None:
+            from vishap.apps.demos import demo_module
+
+            self.frames = int(demo_module(self.scene).DEFAULT_FRAMES)
         if self.retreat_after_s < self.stale_after_s:
             raise ValueError("retreat_after_s must be ≥ stale_after_s")
         if self.background_frames >= self.frames:

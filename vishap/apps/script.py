@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FingerScript", "SCRIPTS", "script_for"]
+__all__ = ["FingerScript", "Z", "script_for"]
 
 Z = -0.150  # surface height of every demo object (m, robot frame)
 
@@ -59,60 +59,8 @@ class FingerScript:
         return t >= self.hidden_s
 
 
-def _wall(hidden_s: float) -> FingerScript:
-    return FingerScript(
-        start=(0.235, 0.035, Z + 0.055),
-        hidden_s=hidden_s,
-        moves=(
-            (0.25, (0.235, 0.035, Z + 0.055)),   # appear, pause
-            (1.00, (0.215, 0.010, Z)),           # approach (peak ≈ 0.1 m/s) and touch
-            (0.40, (0.215, 0.010, Z - 0.003)),   # press 3 mm
-            (0.30, (0.215, 0.010, Z - 0.003)),   # hold
-            (0.80, (0.190, -0.010, Z - 0.003)),  # slide 32 mm along the wall
-            (0.50, (0.190, -0.010, Z + 0.040)),  # lift
-            (0.45, (0.225, -0.020, Z + 0.050)),  # move over
-            (0.30, (0.225, -0.020, Z)),          # fast approach (peak ≈ 0.3 m/s)
-            (0.50, (0.225, -0.020, Z - 0.005)),  # press 5 mm
-            (0.50, (0.225, -0.020, Z + 0.045)),  # lift
-        ),
-    )
-
-
-def _button(hidden_s: float) -> FingerScript:
-    return FingerScript(
-        start=(0.230, 0.030, Z + 0.055),
-        hidden_s=hidden_s,
-        moves=(
-            (0.25, (0.230, 0.030, Z + 0.055)),
-            (1.00, (0.200, 0.000, Z)),           # approach the key's centre
-            (0.80, (0.200, 0.000, Z - 0.0045)),  # press through the click to the bottom
-            (0.20, (0.200, 0.000, Z - 0.0045)),
-            (0.50, (0.200, 0.000, Z + 0.030)),   # release
-            (0.35, (0.202, 0.002, Z)),           # quick second press
-            (0.50, (0.202, 0.002, Z - 0.0045)),
-            (0.50, (0.202, 0.002, Z + 0.045)),
-        ),
-    )
-
-
-def _fabric(hidden_s: float) -> FingerScript:
-    return FingerScript(
-        start=(0.240, 0.030, Z + 0.055),
-        hidden_s=hidden_s,
-        moves=(
-            (0.25, (0.240, 0.030, Z + 0.055)),
-            (1.00, (0.220, 0.005, Z)),           # approach and touch
-            (0.30, (0.220, 0.005, Z - 0.002)),   # light press
-            (0.40, (0.220, 0.005, Z - 0.002)),   # rest: distributed contact
-            (0.90, (0.185, 0.005, Z - 0.002)),   # slow stroke (≈ 0.07 m/s mean)
-            (0.30, (0.215, 0.005, Z - 0.002)),   # fast stroke back (≈ 0.1 m/s mean, 0.19 peak)
-            (0.50, (0.215, 0.005, Z + 0.045)),   # lift
-        ),
-    )
-
-
-SCRIPTS = {"wall": _wall, "button": _button, "fabric": _fabric}
-
-
 def script_for(scene: str, *, hidden_s: float) -> FingerScript:
-    return SCRIPTS[scene](hidden_s)
+    """The scripted finger of demo ``scene`` (defined in :mod:`vishap.apps.<scene>`)."""
+    from vishap.apps.demos import demo_module
+
+    return demo_module(scene).script(hidden_s)

@@ -92,6 +92,9 @@ def summarize(meta: dict, ch: dict[str, dict[str, np.ndarray]], *, wall: dict | 
         out["realtime_factor"] = sim_s / loop if loop > 0 else None
         out["realtime_factor_with_render"] = sim_s / wall["total"] if wall["total"] > 0 else None
     out["calibration"] = meta.get("calibration")
+    from vishap.apps.demos import demo_module
+
+    out.update(demo_module(cfg["scene"]).extra_summary(meta, ch))
     return out
 
 
