@@ -91,7 +91,12 @@ def run_live(scene: str, *, out, cameras: str, calib: str | None, rig: str | Non
              duration_s: float) -> dict:
     idx, rig_path, calib_path, driver = check_live(cameras=cameras, rig=rig, calib=calib, device=device)
     from vishap.apps.live_loop import run_live_loop
+    from vishap.registration.camera_robot import load
+    from vishap.vision.capture import CameraSource
+    from vishap.vision.rig import StereoRig
 
     os.makedirs(out, exist_ok=True)
-    return run_live_loop(scene, out=out, camera_indices=idx, rig_path=rig_path, calib_path=calib_path,
-                         device_cls=driver, duration_s=duration_s)
+    stereo = StereoRig.load(rig_path)
+    source = CameraSource(idx[0], idx[1] if len(idx) == 2 else None)
+    return run_live_loop(scene, out=out, source=source, rig=stereo, T_robot_cam=load(calib_path, rig=stereo),
+                         device_path=f"{driver.__module__}:{driver.__name__}", duration_s=duration_s)
