@@ -177,14 +177,13 @@ def _pad_force(obj, half_extent):
 
 
 def _build_tactile(cfg: DemoConfig, scene):
-    try:
-        tr = need("vishap.tactile.renderer", "tactile")
-    except Exception as exc:  # the tactile stage is optional for wall/button, required for fabric
-        if cfg.scene == "fabric":
-            raise
-        print(f"vishap demo: note: tactile layer not available ({exc})", file=sys.stderr)
-        return None, lambda out: 0
-    renderer = tr.TactileRenderer.for_scene(scene) if hasattr(tr.TactileRenderer, "for_scene") else tr.TactileRenderer()
+    """The tactile sleeve renderer for the scene's surface (attributes from the demo module)."""
+    from vishap.apps.demos import demo_module
+
+    tr = need("vishap.tactile.renderer", "tactile")
+    tcfg = need("vishap.tactile.config", "tactile (config)")
+    surface = tcfg.SurfaceAttributes(**demo_module(cfg.scene).surface(scene))
+    renderer = tr.TactileRenderer(surface=surface, seed=cfg.seed)
 
     def state(out) -> int:
         s = getattr(out, "state", None)

@@ -7,7 +7,7 @@ import numpy as np
 from vishap.apps.metrics import linear_fit
 from vishap.apps.script import Z, FingerScript
 
-__all__ = ["DEFAULT_FRAMES", "script", "extra_summary"]
+__all__ = ["DEFAULT_FRAMES", "script", "surface", "extra_summary"]
 
 DEFAULT_FRAMES = 133  # 4.4 s at 30 Hz
 
@@ -56,3 +56,9 @@ def extra_summary(meta: dict, ch: dict) -> dict:
         "button_force_after_click_n": f_post,
         "button_click_detected": bool(f_pre is not None and f_post is not None and f_post < f_pre),
     }
+
+
+def surface(scene) -> dict:
+    """Tactile attributes of a keycap (PHSM §2.1): hard plastic, smooth, a fine grain."""
+    return {"hardness": 0.85, "elasticity": 0.15, "roughness": 0.2, "friction": 0.35, "viscoelasticity": 0.1,
+            "texture_period_m": 0.0008}

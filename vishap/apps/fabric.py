@@ -6,7 +6,7 @@ import numpy as np
 
 from vishap.apps.script import Z, FingerScript
 
-__all__ = ["DEFAULT_FRAMES", "script", "extra_summary"]
+__all__ = ["DEFAULT_FRAMES", "script", "surface", "extra_summary"]
 
 DEFAULT_FRAMES = 120  # 4.0 s at 30 Hz
 
@@ -44,3 +44,11 @@ def extra_summary(meta: dict, ch: dict) -> dict:
     if len(tac.get("t", [])):
         out["slip_ms"] = float(np.sum(tac["state"] == 3) * np.median(np.diff(tac["t"])) * 1e3)
     return out
+
+
+def surface(scene) -> dict:
+    """Tactile attributes of the patch (PHSM §2.1): soft woven fabric; friction and weave period
+    from the scene file (the same μ_k the force law renders)."""
+    s = scene.objects[0].spec.surface
+    return {"hardness": 0.2, "elasticity": 0.6, "roughness": min(1.0, 0.5 * s.roughness_rms_m / 5e-5),
+            "friction": float(s.mu_kinetic), "viscoelasticity": 0.5, "texture_period_m": float(s.texture_period_m)}

@@ -116,7 +116,8 @@ class Demo:
         row = {"t": t, "index": k, "dropped": dropped, "found": False, "p_cam": np.full(3, np.nan),
                "uv_left": np.full(2, np.nan), "uv_right": np.full(2, np.nan), "confidence": 0.0,
                "vision_ms": np.nan, "available_at": np.nan, "tip_cam_true": tip_cam, "tip_robot_true": tip,
-               "tip_visible": tip_vis, "hand_visible": visible, "render_ms": 1e3 * (c1 - c0)}
+               "tip_visible": tip_vis, "hand_visible": visible, "render_ms": 1e3 * (c1 - c0),
+               "device_q": dev.q, "device_ee": dev.p_robot, **_stage_ms({})}
         est = None
         if dropped:
             self.stats["frames_dropped"] += 1
@@ -134,7 +135,8 @@ class Demo:
                     available = max(available, f.t_end + self.cfg.vision_latency_s)
             self.pending.append((available, {"t": t, "index": k, **res}))
             row.update(found=res["found"], p_cam=res["p_cam"], uv_left=res["uv_left"], uv_right=res["uv_right"],
-                       confidence=res["confidence"], vision_ms=res["vision_ms"], available_at=available)
+                       confidence=res["confidence"], vision_ms=res["vision_ms"], available_at=available,
+                       **_stage_ms(est.timings))
         self.log.channel("vision").append(**row)
         if self.video is not None:
             c3 = time.perf_counter()
@@ -180,7 +182,7 @@ class Demo:
             subject=-1 if inter is None or inter.object_name is None else st.object_index(inter.object_name),
             depth=np.nan if inter is None else float(inter.depth),
             imminent=bool(inter is not None and inter.imminent),
-            in_contact=bool(inter is not None and inter.in_contact))
+            in_contact=bool(inter is not None and inter.in_contact), world_ms=1e3 * (time.perf_counter() - c0))
         self.wall["scene"] += time.perf_counter() - c0
 
     # ------------------------------------------------------------------ servo (1 kHz)
@@ -278,6 +280,15 @@ class Demo:
         if self.video is not None:
             self.video.close()
         return write_outputs(self)
+
+
+def _stage_ms(timings: dict) -> dict:
+    """Vision time per stage (ms; NaN when not run): segmentation and detection of both views, stereo."""
+    def total(prefix):
+        v = [x for k, x in timings.items() if k.startswith(prefix)]
+        return float(sum(v)) if v else float("nan")
+
+    return {"segment_ms": total("segment_"), "detect_ms": total("detect_"), "stereo_ms": total("stereo")}
 
 
 def _label_at(labels: np.ndarray, uv) -> int:

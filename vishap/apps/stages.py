@@ -56,7 +56,7 @@ def tactile_row(out) -> dict[str, np.ndarray]:
             a = np.asarray(v, dtype=np.float64)
         except (TypeError, ValueError):
             continue
-        row[k] = a
+        row[k] = a.astype(np.float32) if a.size > 1 else a
     return row
 
 

@@ -117,16 +117,11 @@ def write_plots(out: Path, meta: dict, ch: dict) -> list[str]:
                      "finger_robot": scene_ch.get("finger_robot", np.zeros((0, 3)))}
         files.append(plot_timeline(out / "timeline.png", servo, vis_robot, title=f"{scene} demo", normal=n))
     if len(tac.get("t", [])):
-        sig_key = next((k for k in ("drive", "primary", "signal", "amplitude") if k in tac), None)
-        if sig_key is None:
-            cand = [k for k, v in tac.items() if v.ndim >= 1 and k not in ("t", "normal_force", "in_contact", "state")]
-            sig_key = cand[0] if cand else None
-        if sig_key is not None:
-            sig = tac[sig_key]
-            if sig.ndim > 1:
-                sig = sig.reshape(sig.shape[0], -1).sum(axis=1)
-            files.append(plot_spectrogram(out / "tactile_spectrogram.png", tac["t"], sig, 1.0 / np.median(np.diff(tac["t"])),
-                                          title=f"{scene}: tactile drive ({sig_key}) spectrogram"))
+        if "regions" in tac and "fs" in tac:
+            sig = tac["regions"].astype(float).sum(axis=1).reshape(-1)   # the three sleeve actuators, 10 kHz
+            fs = float(tac["fs"][0])
+            files.append(plot_spectrogram(out / "tactile_spectrogram.png", tac["t"], sig, fs,
+                                          title=f"{scene}: sleeve drive (sum of the 3 regional actuators)"))
         files.append(plot_contact_states(out / "contact_states.png", tac["t"], tac["state"],
                                          ["none", "concentrated", "distributed", "slip"], tac["normal_force"],
                                          title=f"{scene}: contact state (tactile classifier)"))

@@ -6,7 +6,7 @@ import numpy as np
 
 from vishap.apps.script import Z, FingerScript
 
-__all__ = ["DEFAULT_FRAMES", "script", "extra_summary"]
+__all__ = ["DEFAULT_FRAMES", "script", "surface", "extra_summary"]
 
 DEFAULT_FRAMES = 162  # 5.4 s at 30 Hz: the script below plus its 10 hand-free frames
 
@@ -42,3 +42,9 @@ def extra_summary(meta: dict, ch: dict) -> dict:
     d = sv["finger_point"][touching] - sv["device_point"][touching]
     lateral = d - np.outer(d @ n, n)
     return {"slide_lag_mm_median": float(1e3 * np.median(np.linalg.norm(lateral, axis=1)))}
+
+
+def surface(scene) -> dict:
+    """Tactile attributes of the plate the finger meets (PHSM §2.1): hard, smooth, little texture."""
+    return {"hardness": 0.95, "elasticity": 0.05, "roughness": 0.1, "friction": 0.3, "viscoelasticity": 0.05,
+            "texture_period_m": 0.002}
