@@ -66,5 +66,5 @@ def test_holds_position_before_any_target_and_callback_force():
     np.testing.assert_allclose(seen[0], p0)
     for i in range(600, 1600):
         servo.tick(i * 1e-3)
-    # a constant 0.5 N push against Kp = 400 N/m moves it ≈ 1.25 mm up
-    assert plant.read().p_robot[2] - p0[2] == pytest.approx(0.5 / 400.0, rel=0.05)
+    # a constant 0.5 N push against Kp moves it 0.5 / Kp up
+    assert plant.read().p_robot[2] - p0[2] == pytest.approx(0.5 / Gains().kp, rel=0.05)

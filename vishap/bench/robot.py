@@ -93,7 +93,9 @@ def _numpy_pd_loop(n: int):
     jacp = np.zeros((3, m.nv))
     # actuator moment arms: ctrl → qfrc is Eᵀ; gravity in motor torques is E⁻ᵀ qfrc_bias
     E_inv_T = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -1.0], [0.0, 0.0, 1.0]])
-    kp, kv = 400.0, 16.0
+    from vishap.robot import Gains
+
+    kp, kv = Gains().kp, Gains().kv
     targets = [_target(i * 1e-3) for i in range(n)]
 
     def run(durations: np.ndarray, k0: int) -> None:

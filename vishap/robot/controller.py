@@ -38,8 +38,8 @@ __all__ = ["Gains", "Controller"]
 class Gains:
     """Controller gains: ``kp`` (N/m), ``kv`` (N·s/m), Eq. 5 filter constant ``a`` (rad/s), ramp-up (s)."""
 
-    kp: float = 400.0
-    kv: float = 16.0
+    kp: float = 800.0
+    kv: float = 32.0
     a: float = 500.0
     ramp_s: float = 0.5
 

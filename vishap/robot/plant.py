@@ -38,6 +38,10 @@ class MujocoPlant(Device):
         Whole servo periods by which each command is delayed before it reaches the motors.
     q0:
         Initial joint angles (rad); home ``(0, 0, 0)`` by default.
+    sensor:
+        ``"exact"`` reads MuJoCo's joint angles and rates; ``"encoder"`` quantises the angles to
+        ``encoder_resolution_rad`` and estimates rates by the backward difference over one servo
+        period, as a real PHANToM driver does.
     """
 
     def __init__(
@@ -49,6 +53,8 @@ class MujocoPlant(Device):
         delay_ticks: int = 0,
         q0=None,
         max_stiffness_n_m: float | None = None,
+        sensor: str = "exact",
+        encoder_resolution_rad: float = 1.5e-4,
     ):
         m_tip = 0.0 if passive_object is None else passive_object.mass_kg
         self.params = params.with_tip_mass(m_tip)
@@ -76,6 +82,13 @@ class MujocoPlant(Device):
             raise ValueError(f"delay_ticks: expected ≥ 0, got {delay_ticks!r}")
         self.delay_ticks = int(delay_ticks)
         self._pending: deque | None = deque([(0.0, 0.0, 0.0)] * self.delay_ticks) if self.delay_ticks else None
+        if sensor not in ("exact", "encoder"):
+            raise ValueError(f"sensor: expected 'exact' or 'encoder', got {sensor!r}")
+        self.sensor = sensor
+        self._res = float(encoder_resolution_rad)
+        if sensor == "encoder" and not self._res > 0:
+            raise ValueError(f"encoder_resolution_rad: expected > 0, got {encoder_resolution_rad!r}")
+        self._enc = None  # (θ1, θ2, θ3, θ̇1, θ̇2, θ̇3) of the encoder model
         self._t = 0.0
         self.reset(q0)
 
@@ -94,6 +107,8 @@ class MujocoPlant(Device):
         self._qvel[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
         self._t = float(t)
+        if self.sensor == "encoder":
+            self._enc = self._encoder_angles() + (0.0, 0.0, 0.0)
         if self._pending is not None:
             self._pending = deque([(0.0, 0.0, 0.0)] * self.delay_ticks)
 
@@ -104,9 +119,16 @@ class MujocoPlant(Device):
         return DeviceState(self._t, q, qd, kinematics.fk(q, self.params), kinematics.jacobian(q, self.params) @ qd)
 
     def read_scalar(self) -> tuple[float, float, float, float, float, float]:
+        if self._enc is not None:
+            return self._enc
         a, b, c = self._qpos.tolist()
         wa, wb, wc = self._qvel.tolist()
         return (a, b, b + c, wa, wb, wb + wc)
+
+    def _encoder_angles(self) -> tuple[float, float, float]:
+        a, b, c = self._qpos.tolist()
+        r = self._res
+        return (round(a / r) * r, round(b / r) * r, round((b + c) / r) * r)
 
     def command_torque(self, tau) -> None:
         tau = np.asarray(tau, dtype=np.float64).reshape(3)
@@ -128,6 +150,11 @@ class MujocoPlant(Device):
     def step(self) -> None:
         self._mj_step(self._m, self._d, self.substeps)
         self._t += self.dt
+        if self._enc is not None:
+            e = self._enc
+            a, b, c = self._encoder_angles()
+            k = 1.0 / self.dt
+            self._enc = (a, b, c, (a - e[0]) * k, (b - e[1]) * k, (c - e[2]) * k)
 
     # -- simulation extras ----------------------------------------------------------------------
     def apply_tip_force(self, F_robot) -> None:
@@ -138,7 +165,8 @@ class MujocoPlant(Device):
         F = np.asarray(F_robot, dtype=np.float64).reshape(3)
         if not np.all(np.isfinite(F)):
             raise DeviceError(f"apply_tip_force: non-finite force {F.tolist()}")
-        t1, t2, t3 = self.read_scalar()[:3]
+        a, b, c = self._qpos.tolist()
+        t1, t2, t3 = a, b, b + c
         tau = kinematics.jacobian((t1, t2, t3), self.params).T @ F
         self._qfrc_applied[:] = (tau[0], tau[1] + tau[2], tau[2])
 
@@ -152,5 +180,8 @@ class MujocoPlant(Device):
             raise DeviceError(f"simulation diverged at t={self._t:.4f} s (non-finite joint state)")
 
     def __repr__(self) -> str:
-        return f"MujocoPlant(m_tip={self.params.m_tip} kg, substeps={self.substeps}, delay_ticks={self.delay_ticks})"
+        return (
+            f"MujocoPlant(m_tip={self.params.m_tip} kg, substeps={self.substeps}, "
+            f"delay_ticks={self.delay_ticks}, sensor={self.sensor!r})"
+        )
 

@@ -10,11 +10,13 @@ and ė; the policy is measured by ``vishap bench tracking``):
 * ``hold`` — keep the latest sample, Ẋ_d = 0;
 * ``interpolate`` — move linearly from the previous sample to the latest over one sample interval
   (smooth, one interval late);
-* ``extrapolate`` — continue from the latest sample with the velocity of the last two samples, for
-  at most ``horizon`` sample intervals, then hold.
+* ``extrapolate`` — continue from the latest sample with the velocity of the last two samples,
+  counted from the sample's capture time (making up for vision latency), for at most ``horizon``
+  sample intervals past its arrival, then hold.
 
-A new sample is recognised by a new ``t_sample`` when the caller gives one, otherwise by a change of
-value (a target that stops moving then stops being extrapolated after the horizon).
+A new sample is recognised by a new ``t_sample`` (its capture time) when the caller gives one,
+otherwise by a change of value, taken as captured on arrival (a target that stops moving then
+stops being extrapolated after the horizon).
 """
 from __future__ import annotations
 
@@ -46,7 +48,8 @@ class TargetShaper:
 
     def reset(self) -> None:
         self.n_samples = 0
-        self._t1 = None
+        self._t1 = None  # capture time of the latest sample
+        self._ta = None  # servo time at which it arrived
         self._x1 = None  # latest sample
         self._x0 = None  # previous sample
         self._v = (0.0, 0.0, 0.0)
@@ -54,12 +57,13 @@ class TargetShaper:
         self._last_raw = None
         self._last_ts = None
 
-    def push(self, t: float, x: float, y: float, z: float) -> None:
-        """A new sample ``(x, y, z)`` (m) taken at time ``t`` (s)."""
+    def push(self, t: float, x: float, y: float, z: float, *, t_arrival: float | None = None) -> None:
+        """A new sample ``(x, y, z)`` (m) captured at time ``t`` (s), arriving at ``t_arrival`` (default ``t``)."""
+        ta = t if t_arrival is None else t_arrival
         self.n_samples += 1
         if self._x1 is None:
             self._x0 = self._x1 = (x, y, z)
-            self._t1 = t
+            self._t1, self._ta = t, ta
             self._v = (0.0, 0.0, 0.0)
             self._dt = 0.0
             return
@@ -77,15 +81,19 @@ class TargetShaper:
         else:
             self._v = (0.0, 0.0, 0.0)
             self._dt = 0.0
-        self._t1 = t
+        self._t1, self._ta = t, ta
 
     def offer(self, t: float, X_d, t_sample: float | None = None) -> None:
-        """Push ``X_d`` if it is a new sample (new ``t_sample``, or new value when none is given)."""
+        """Push ``X_d`` at servo time ``t`` if it is a new sample.
+
+        With ``t_sample`` (the capture time of the frame X_d came from) a sample is new when
+        ``t_sample`` changes; without it, when the value changes (captured "now").
+        """
         x, y, z = float(X_d[0]), float(X_d[1]), float(X_d[2])
         if t_sample is not None:
             if t_sample != self._last_ts:
                 self._last_ts = t_sample
-                self.push(t_sample, x, y, z)
+                self.push(t_sample, x, y, z, t_arrival=t)
             return
         raw = (x, y, z)
         if raw != self._last_raw:
@@ -93,24 +101,30 @@ class TargetShaper:
             self.push(t, x, y, z)
 
     def at(self, t: float):
-        """(x, y, z, vx, vy, vz) of the shaped target at time ``t``; None before the first sample."""
+        """(x, y, z, vx, vy, vz) of the shaped target at servo time ``t``; None before the first sample.
+
+        ``interpolate`` runs from the previous sample to the latest over one sample interval after
+        the latest *arrived*; ``extrapolate`` predicts from the latest *capture* time (so it also
+        makes up for the vision latency) up to ``horizon`` intervals past the arrival.
+        """
         x1 = self._x1
         if x1 is None:
             return None
         mode = self._mode
         if mode == 0 or self._dt == 0.0:
             return x1[0], x1[1], x1[2], 0.0, 0.0, 0.0
-        el = t - self._t1
         vx, vy, vz = self._v
-        if mode == 1:  # interpolate from x0 to x1 over one interval
+        if mode == 1:  # interpolate from x0 to x1 over one interval after arrival
+            el = t - self._ta
             if el >= self._dt:
                 return x1[0], x1[1], x1[2], 0.0, 0.0, 0.0
             if el < 0.0:
                 el = 0.0
             x0 = self._x0
             return x0[0] + vx * el, x0[1] + vy * el, x0[2] + vz * el, vx, vy, vz
-        # extrapolate
-        hz = self.horizon * self._dt
+        # extrapolate from the capture time, at most `horizon` intervals beyond the arrival
+        el = t - self._t1
+        hz = (self._ta - self._t1) + self.horizon * self._dt
         if el >= hz:
             return x1[0] + vx * hz, x1[1] + vy * hz, x1[2] + vz * hz, 0.0, 0.0, 0.0
         if el < 0.0:

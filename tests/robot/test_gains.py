@@ -1,0 +1,44 @@
+"""The shipped gains file: defaults inside the measured stable region with margin; refusals."""
+import pytest
+
+from vishap._core.errors import ConfigError
+from vishap.robot.controller import Gains
+from vishap.robot.gains import GAINS_FILE, check_gains, load_gains
+
+
+def test_shipped_defaults_load_and_match_the_code_defaults():
+    gains, cfg = load_gains()
+    assert gains == Gains()
+    assert cfg.max_stiffness_n_m > 0
+
+
+def test_defaults_have_margin():
+    """Kp ×/÷ 2 and Kv ×/÷ 2 (all eight neighbours) and a ÷ 5 are inside the measured region."""
+    gains, cfg = load_gains()
+    for fk in (0.5, 1.0, 2.0):
+        for fv in (0.5, 1.0, 2.0):
+            check_gains(Gains(kp=gains.kp * fk, kv=gains.kv * fv, a=gains.a), cfg.stable_region)
+    check_gains(Gains(kp=gains.kp, kv=gains.kv, a=gains.a / 5), cfg.stable_region)
+
+
+@pytest.mark.parametrize(
+    "override, field",
+    [({"kp": 20000.0}, "gains"), ({"kv": 0.0}, "gains"), ({"kp": 1e6}, "gains.kp"), ({"a": 10.0}, "gains.a"),
+     ({"kv": -1.0}, "gains.kv"), ({"stiffness": 1.0}, "gains.stiffness")],
+)
+def test_gains_outside_the_region_are_refused(override, field):
+    with pytest.raises(ConfigError) as err:
+        load_gains(override=override)
+    assert err.value.field == field
+    assert str(GAINS_FILE) in str(err.value)
+
+
+def test_malformed_file_is_refused(tmp_path):
+    bad = tmp_path / "gains.yaml"
+    text = GAINS_FILE.read_text().replace("kp: 800.0", "kp: fast")
+    bad.write_text(text)
+    with pytest.raises(ConfigError, match="gains.kp"):
+        load_gains(bad)
+    bad.write_text(GAINS_FILE.read_text().replace("    - [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]\n", "", 1))
+    with pytest.raises(ConfigError, match="stable"):
+        load_gains(bad)

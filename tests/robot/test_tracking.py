@@ -1,0 +1,42 @@
+"""Tracking helpers: step metrics on known signals; default gains are critically damped; gap policies."""
+import argparse
+
+import numpy as np
+import pytest
+
+from vishap.robot.controller import Gains
+from vishap.robot.tracking import moving_target, step_metrics, step_response
+
+
+def test_step_metrics_on_a_known_second_order_response():
+    t = np.arange(0, 2.0, 1e-3)
+    wn, zeta = 20.0, 0.5
+    wd = wn * np.sqrt(1 - zeta**2)
+    tt = np.clip(t - 0.1, 0, None)
+    y = 1 - np.exp(-zeta * wn * tt) * (np.cos(wd * tt) + zeta / np.sqrt(1 - zeta**2) * np.sin(wd * tt))
+    m = step_metrics(t, y, 0.1, 1.0)
+    assert m["overshoot_pct"] == pytest.approx(100 * np.exp(-np.pi * zeta / np.sqrt(1 - zeta**2)), rel=1e-3)
+    assert m["settling_time_s"] == pytest.approx(4 / (zeta * wn), rel=0.25)
+    assert m["steady_state_error_m"] < 1e-6
+
+
+def test_default_gains_do_not_overshoot():
+    for d in ([1, 0, 0], [0, 1, 0], [0, 0, 1]):
+        r = step_response(Gains(), d, 0.02, duration_s=0.6)
+        assert r["overshoot_pct"] < 1.0 and r["steady_state_error_m"] < 1e-5 and r["settling_time_s"] < 0.3
+
+
+def test_extrapolation_beats_hold_on_a_moving_finger():
+    hold = moving_target(Gains(), "hold", 30.0, latency_s=0.03, duration_s=1.5)
+    extra = moving_target(Gains(), "extrapolate", 30.0, latency_s=0.03, duration_s=1.5)
+    assert extra["rms_error_m"] < 0.5 * hold["rms_error_m"]
+
+
+def test_bench_tracking_quick(tmp_path):
+    from vishap.bench import tracking
+
+    rec = tracking.run(argparse.Namespace(out=str(tmp_path), gains=None, latency_ms=30.0, duration=1.0, quick=True))
+    assert set(rec["responses"]) == {"step_x", "step_y", "step_z", "step_z_no_gravity_comp", "ramp_x"}
+    assert len(rec["policies"]) == 3
+    for name in ("tracking_steps.png", "tracking_policies.png"):
+        assert (tmp_path / name).stat().st_size > 1000

@@ -1,0 +1,232 @@
+"""``vishap bench stability``: where the servo loop fails, and the Colgate passivity bound beside it.
+
+Sweeps (each run: :mod:`vishap.robot.stability`, MuJoCo with ``--substeps`` physics steps per 1 ms):
+
+* ``kp_kv`` — Kp × Kv grid, free-space move, for the ideal sensor and the encoder model;
+* ``filter`` — Eq. 5 filter constant ``a`` × Kp (Kv scaled to keep the damping ratio);
+* ``rate`` — X_d update rate 20 Hz → 1 kHz × gap policy (hold / interpolate / extrapolate);
+* ``delay`` — added transport delay (servo periods) × Kp;
+* ``wall`` — virtual-wall stiffness K × damping B, with 1 and ``--substeps`` physics steps per
+  period and both sensors: one physics step per period can hide the instability.
+
+The chart draws the Colgate–Schenkel passivity bound ``b > K·T/2 + |B|`` for the arm's own tip
+damping ``b`` and, dashed, for larger ``b`` a real device might have. Returns (and the command
+saves as ``DIR/stability.json``) one record per run with its parameters and ``outcome``, a summary,
+and the measured stable region that ``vishap/robot/gains.yaml`` is checked against.
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from vishap.bench._common import machine_info, new_figure, save_figure
+
+HELP = "stability map of the servo loop (gains, filter, X_d rate, delay, wall stiffness) with the passivity bound"
+
+KP = [25, 50, 100, 200, 400, 800, 1600, 3200, 6400, 12800, 25600]
+KV = [0, 1, 2, 4, 8, 16, 32, 64, 128, 256]
+A = [5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000]
+RATES = [20, 30, 60, 125, 250, 500, 1000]
+DELAYS = [0, 1, 2, 3, 5, 8, 12, 20]
+WALL_K = [250, 500, 1000, 2000, 4000, 8000, 16000, 32000, 64000]
+WALL_B = [0, 2, 5, 10, 20, 40]
+SWEEP_KP = [200, 800, 3200]  # Kp of the filter and delay sweeps (Kv ∝ √Kp)
+COLORS = {"stable": "tab:green", "oscillating": "tab:orange", "diverged": "tab:red"}
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--substeps", type=int, default=10, help="physics steps per 1 ms servo period (default 10)")
+    parser.add_argument("--quick", action="store_true", help="a coarse subset of every sweep (for smoke tests)")
+
+
+def _grids(quick: bool) -> dict:
+    if not quick:
+        return dict(kp=KP, kv=KV, a=A, rates=RATES, delays=DELAYS, wall_k=WALL_K, wall_b=WALL_B, sensors=["exact", "encoder"])
+    return dict(
+        kp=[800, 6400], kv=[0, 32], a=[500], rates=[20], delays=[12],
+        wall_k=[32000], wall_b=[0], sensors=["exact"],
+    )
+
+
+def _kv_for(kp: float) -> float:
+    """Kv that keeps the damping ratio of the defaults (Kp 800, Kv 32: no overshoot on any axis)."""
+    return 32.0 * math.sqrt(kp / 800.0)
+
+
+def run_sweeps(substeps: int, quick: bool = False) -> list[dict]:
+    from vishap.robot.stability import RunSpec, run_free_space, run_wall
+
+    g = _grids(quick)
+    recs: list[dict] = []
+
+    def add(sweep, fn, **kw):
+        r = fn(RunSpec(substeps=substeps, **kw))
+        r["sweep"] = sweep
+        recs.append(r)
+
+    for sensor in g["sensors"]:
+        for kp in g["kp"]:
+            for kv in g["kv"]:
+                add("kp_kv", run_free_space, kp=kp, kv=kv, sensor=sensor)
+    for kp in ([800] if quick else SWEEP_KP):
+        for a in g["a"]:
+            add("filter", run_free_space, kp=kp, kv=_kv_for(kp), a=a)
+    for policy in ("hold", "extrapolate") if quick else ("hold", "interpolate", "extrapolate"):
+        for rate in g["rates"]:
+            add("rate", run_free_space, rate_hz=rate, policy=policy)
+    for kp in ([800] if quick else SWEEP_KP):
+        for d in g["delays"]:
+            add("delay", run_free_space, kp=kp, kv=_kv_for(kp), delay_ticks=d)
+    for sub in sorted({1, substeps}):
+        for sensor in g["sensors"]:
+            for K in g["wall_k"]:
+                for B in g["wall_b"]:
+                    r = run_wall(RunSpec(substeps=sub, sensor=sensor, wall_k=K, wall_b=B))
+                    r["sweep"] = "wall"
+                    recs.append(r)
+    return recs
+
+
+def stable_region(recs: list[dict], substeps: int) -> dict:
+    """The measured stable region: gains for which every sensor's run was stable."""
+    kpkv = [r for r in recs if r["sweep"] == "kp_kv"]
+    kps = sorted({r["kp"] for r in kpkv})
+    kvs = sorted({r["kv"] for r in kpkv})
+    ok = np.ones((len(kps), len(kvs)), dtype=bool)
+    for r in kpkv:
+        if r["outcome"] != "stable":
+            ok[kps.index(r["kp"]), kvs.index(r["kv"])] = False
+    filt = [r for r in recs if r["sweep"] == "filter"]
+    a_vals = sorted({r["a"] for r in filt})
+    a_ok = [a for a in a_vals if all(x["outcome"] == "stable" for x in filt if x["a"] == a)]
+    # smallest a from which every larger swept a was stable at every swept Kp
+    a_min = None
+    for a in reversed(a_vals):
+        if a not in a_ok:
+            break
+        a_min = a
+    walls = [r for r in recs if r["sweep"] == "wall" and r["substeps"] == substeps]
+    k_ok = [K for K in sorted({r["wall_k"] for r in walls}) if all(r["outcome"] == "stable" for r in walls if r["wall_k"] <= K and r["wall_b"] > 0)]
+    delays = [r for r in recs if r["sweep"] == "delay" and r["kp"] == 800]
+    d_ok = [r["delay_ticks"] for r in delays if r["outcome"] == "stable"]
+    return {
+        "kp_kv_grid": {"kp": kps, "kv": kvs, "stable": ok.astype(int).tolist()},
+        "a_stable": a_ok,
+        "a_min": a_min,
+        "a_max": max(a_vals) if a_vals else None,
+        "max_wall_stiffness_n_m": max(k_ok) if k_ok else None,
+        "stable_delays_ticks_at_kp800": d_ok,
+    }
+
+
+def _colgate(ax, b: float, T: float, K_range) -> None:
+    K = np.geomspace(K_range[0], K_range[1], 200)
+    for bb, style in [(b, "-"), (1.0, "--"), (5.0, "--"), (20.0, "--")]:
+        B = bb - K * T / 2
+        m = B > 0
+        if m.any():
+            ax.plot(K[m], B[m], "k" + style, lw=1.2 if style == "-" else 0.8, alpha=0.8)
+            ax.annotate(f"b={bb:.3g}", (K[m][0], B[m][0]), fontsize=7, xytext=(2, 2), textcoords="offset points")
+    ax.text(
+        0.02, 0.02, f"arm's own b={b:.3g} N·s/m: passive only for K < {2 * b / T:.0f} N/m, |B| < b (off chart)",
+        transform=ax.transAxes, fontsize=6.5, va="bottom",
+    )
+
+
+def _scatter(ax, recs, x, y, title, xlog=True, ylog=False):
+    for r in recs:
+        ax.scatter(r[x] if r[x] > 0 or not xlog else 1e-1, r[y], c=COLORS[r["outcome"]], s=28, marker="s", edgecolors="none")
+    if xlog:
+        ax.set_xscale("log")
+    if ylog:
+        ax.set_yscale("symlog", linthresh=1.0)
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel(x)
+    ax.set_ylabel(y)
+
+
+def chart(recs: list[dict], out: Path, substeps: int, b_tip: float, T: float) -> Path:
+    fig, axes = new_figure(2, 4, figsize=(18, 8.5))
+    axes = axes.ravel()
+    sensors = sorted({r["sensor"] for r in recs if r["sweep"] == "kp_kv"})
+    for i, sensor in enumerate(sensors[:2]):
+        sub = [r for r in recs if r["sweep"] == "kp_kv" and r["sensor"] == sensor]
+        _scatter(axes[i], sub, "kp", "kv", f"free space, Kp × Kv ({sensor} sensor, {substeps} substeps)", ylog=True)
+        _colgate(axes[i], b_tip, T, (min(KP), max(KP)))
+    for j, (sub_n, sensor) in enumerate([(substeps, "exact"), (1, "exact"), (substeps, "encoder")]):
+        ax = axes[2 + j]
+        sub = [r for r in recs if r["sweep"] == "wall" and r["substeps"] == sub_n and r["sensor"] == sensor]
+        if not sub:
+            ax.set_visible(False)
+            continue
+        _scatter(ax, sub, "wall_k", "wall_b", f"virtual wall K × B ({sensor}, {sub_n} substep{'s' if sub_n > 1 else ''})", ylog=True)
+        _colgate(ax, b_tip, T, (min(WALL_K), max(WALL_K)))
+        ax.set_xlabel("wall stiffness K (N/m)")
+        ax.set_ylabel("wall damping B (N·s/m)")
+    f = [r for r in recs if r["sweep"] == "filter"]
+    _scatter(axes[5], f, "a", "kp", "Eq. 5 filter constant a × Kp (Kv ∝ √Kp)", ylog=False)
+    axes[5].set_yscale("log")
+    rr = [r for r in recs if r["sweep"] == "rate"]
+    pol = ["hold", "interpolate", "extrapolate"]
+    ax = axes[6]
+    for r in rr:
+        yv = pol.index(r["policy"])
+        ax.scatter(r["rate_hz"], yv, c=COLORS[r["outcome"]], s=40, marker="s")
+        ax.annotate(f"{r['rms_error_mm']:.1f}", (r["rate_hz"], yv), fontsize=7, xytext=(0, 6), textcoords="offset points", ha="center")
+    ax.set_xscale("log")
+    ax.set_yticks(range(3), pol)
+    ax.set_ylim(-0.5, 2.6)
+    ax.set_xlabel("X_d update rate (Hz)")
+    ax.set_title("X_d rate × gap policy (labels: RMS tracking error, mm)", fontsize=9)
+    d = [r for r in recs if r["sweep"] == "delay"]
+    ax = axes[7]
+    for r in d:
+        ax.scatter(max(r["delay_ticks"], 0.5), r["kp"], c=COLORS[r["outcome"]], s=40, marker="s")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("added delay (ms; 0 drawn at 0.5)")
+    ax.set_ylabel("kp")
+    ax.set_title("added delay × Kp (Kv ∝ √Kp)", fontsize=9)
+    for k, c in COLORS.items():
+        axes[0].scatter([], [], c=c, marker="s", label=k)
+    axes[0].plot([], [], "k-", label=f"Colgate b > KT/2+|B|, arm b={b_tip:.3g} N·s/m")
+    axes[0].plot([], [], "k--", label="same bound for larger b")
+    axes[0].legend(fontsize=7, loc="upper left")
+    return save_figure(fig, out / "stability.png")
+
+
+def run(args) -> dict:
+    from vishap.robot.params import DEFAULT
+    from vishap.robot.stability import tip_damping
+
+    t0 = time.perf_counter()
+    recs = run_sweeps(int(args.substeps), bool(args.quick))
+    elapsed = time.perf_counter() - t0
+    out = Path(args.out)
+    b_tip = tip_damping()
+    png = chart(recs, out, int(args.substeps), b_tip, DEFAULT.dt)
+    counts = {k: sum(r["outcome"] == k for r in recs) for k in COLORS}
+    region = stable_region(recs, int(args.substeps))
+    # how often one physics step per period called a wall stable that more substeps showed was not
+    walls = {(r["sensor"], r["wall_k"], r["wall_b"], r["substeps"]): r["outcome"] for r in recs if r["sweep"] == "wall"}
+    hidden = sum(
+        1 for (s, K, B, n), o in walls.items() if n == 1 and o == "stable" and walls.get((s, K, B, int(args.substeps)), "stable") != "stable"
+    )
+    return {
+        "bench": "stability",
+        "runs": len(recs),
+        "elapsed_s": elapsed,
+        "outcomes": counts,
+        "substeps": int(args.substeps),
+        "tip_damping_n_s_m": b_tip,
+        "servo_period_s": DEFAULT.dt,
+        "colgate_max_passive_stiffness_n_m": 2 * b_tip / DEFAULT.dt,
+        "walls_hidden_by_one_substep": hidden,
+        "stable_region": region,
+        "chart": str(png),
+        "machine": machine_info(),
+        "records": recs,
+    }

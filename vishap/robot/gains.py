@@ -1,0 +1,111 @@
+"""Servo gains from ``gains.yaml``, refused outside the measured stable region (VisHap §2.3, Eq. 4–5).
+
+``gains.yaml`` (beside this module) holds the default gains, the largest virtual stiffness the
+device may render, and the stable region measured by ``vishap bench stability``: the Kp × Kv grid
+(1 = stable with both the ideal sensor and the encoder model) and the range of the Eq. 5 filter
+constant ``a``. :func:`check_gains` accepts ``(Kp, Kv)`` only when every measured grid node around
+it is stable, and ``a`` only inside the measured range; anything else is a :class:`ConfigError`
+naming the file and field.
+"""
+from __future__ import annotations
+
+import bisect
+import os
+from pathlib import Path
+
+from pydantic import Field, model_validator
+
+from vishap._core.config import Schema, load_config
+from vishap._core.errors import ConfigError
+from vishap.robot.controller import Gains
+
+__all__ = ["GAINS_FILE", "GainsFile", "load_gains", "check_gains"]
+
+GAINS_FILE = Path(__file__).with_name("gains.yaml")
+
+
+class _GainsSection(Schema):
+    kp: float = Field(ge=0, description="N/m")
+    kv: float = Field(ge=0, description="N·s/m")
+    a: float = Field(gt=0, description="rad/s")
+    ramp_s: float = Field(ge=0, description="s")
+
+
+class _Region(Schema):
+    measured_by: str
+    kp: list[float] = Field(min_length=2)
+    kv: list[float] = Field(min_length=2)
+    stable: list[list[int]]
+    a_min: float = Field(gt=0)
+    a_max: float = Field(gt=0)
+
+    @model_validator(mode="after")
+    def _shape(self):
+        if len(self.stable) != len(self.kp) or any(len(row) != len(self.kv) for row in self.stable):
+            raise ValueError(f"stable must be {len(self.kp)} rows of {len(self.kv)} (kp × kv)")
+        if sorted(self.kp) != self.kp or sorted(self.kv) != self.kv:
+            raise ValueError("kp and kv must be increasing")
+        return self
+
+
+class GainsFile(Schema):
+    gains: _GainsSection
+    max_stiffness_n_m: float = Field(gt=0)
+    stable_region: _Region
+
+
+def _bracket(values: list[float], x: float) -> list[int] | None:
+    """Indices of the grid nodes bracketing ``x`` (one index on a node); None outside the grid."""
+    if x < values[0] or x > values[-1]:
+        return None
+    i = bisect.bisect_left(values, x)
+    if values[i] == x:
+        return [i]
+    return [i - 1, i]
+
+
+def check_gains(gains: Gains, region: _Region, *, file: str | os.PathLike | None = None) -> Gains:
+    """Return ``gains`` if they lie inside the measured stable ``region``, else raise :class:`ConfigError`."""
+    ik = _bracket(region.kp, gains.kp)
+    jk = _bracket(region.kv, gains.kv)
+    if ik is None:
+        raise ConfigError(
+            f"kp {gains.kp} N/m is outside the measured range {region.kp[0]}…{region.kp[-1]}", file=file, field="gains.kp"
+        )
+    if jk is None:
+        raise ConfigError(
+            f"kv {gains.kv} N·s/m is outside the measured range {region.kv[0]}…{region.kv[-1]}", file=file, field="gains.kv"
+        )
+    bad = [(region.kp[i], region.kv[j]) for i in ik for j in jk if not region.stable[i][j]]
+    if bad:
+        raise ConfigError(
+            f"(kp {gains.kp}, kv {gains.kv}) is outside the measured stable region: the run(s) at (kp, kv) = "
+            f"{bad} oscillated or diverged ({region.measured_by})",
+            file=file,
+            field="gains",
+        )
+    if not region.a_min <= gains.a <= region.a_max:
+        raise ConfigError(
+            f"a {gains.a} rad/s is outside the measured stable range {region.a_min}…{region.a_max}", file=file, field="gains.a"
+        )
+    return gains
+
+
+def load_gains(path: str | os.PathLike | None = None, *, override: dict | None = None) -> tuple[Gains, GainsFile]:
+    """Read ``path`` (default: the shipped ``gains.yaml``), apply ``override`` (e.g. ``{"kp": 600}``)
+    to its gains, and return the checked :class:`Gains` with the whole file.
+
+    Gains outside the file's measured stable region are refused with a :class:`ConfigError`.
+    """
+    path = GAINS_FILE if path is None else Path(path)
+    cfg = load_config(path, GainsFile)
+    values = cfg.gains.model_dump()
+    for k, v in (override or {}).items():
+        if k not in values:
+            raise ConfigError(f"unknown gain {k!r} (expected one of {sorted(values)})", file=path, field=f"gains.{k}")
+        values[k] = v
+    try:
+        gains = Gains(**values)
+    except ConfigError as exc:
+        raise ConfigError(exc.reason, file=path, field=exc.field) from None
+    return check_gains(gains, cfg.stable_region, file=path), cfg
