@@ -62,5 +62,5 @@ def test_panel_switches_subject_and_goes_over_the_shelf():
     trajs = make_approaches(scene, 3, seed=5, objects=["key_a", "left_wall", "key_b"], slide=False)
     for tr in trajs:
         r = run_approach(scene, tr, World(scene, latency_s=0.033), vision=CLEAN, stop_after_contact_s=0.05)
-        assert r.subjects[-1] == tr.object_name and len(r.subjects) >= 2, r.subjects
+        assert r.subject_at_contact == tr.object_name and len(r.subjects) >= 2, r.subjects
         assert not r.through_object and r.touched

@@ -127,3 +127,21 @@ def test_contact_render_gates_the_law_and_the_object_gain():
     kb = World(load_scene("panel"), predictor="none")
     it = kb.update(0.0, [0.23, 0.04, -0.149])
     assert kb.contact_render(np.array([0.23, 0.04, -0.152]), None, it)[1] == (1.0, 1.0, 0.0)  # a key stays put
+
+
+def test_path_extrapolation_follows_a_bowed_reach_that_the_ray_misses():
+    from vishap.world.predictor import PathExtrapolator
+
+    R, centre = np.eye(3), np.array([0.2, 0.0, -0.15])
+    ex = PathExtrapolator(window_s=0.4)
+    hs = np.linspace(0.05, 0.02, 10)  # descending; sideways offset quadratic in the height
+    for i, h in enumerate(hs):
+        ex.observe(i / 30, centre + [0.01 + 0.2 * h + 4.0 * h * h, 0.0, h])
+    c, var = ex.contact(centre, R)
+    assert np.allclose(c, centre + [0.01, 0.0, 0.0], atol=1e-9) and var > 0
+    # the ray along the last velocity lands millimetres away from the true point
+    p, p_prev = centre + [0.01 + 0.2 * hs[-1] + 4.0 * hs[-1] ** 2, 0, hs[-1]], centre + [0.01 + 0.2 * hs[-2] + 4.0 * hs[-2] ** 2, 0, hs[-2]]
+    ray, _ = contact_point(p, (p - p_prev) * 30, [0, 0, 1], -0.15, horizon_s=1.0)
+    assert abs(ray[0] - c[0]) > 0.001
+    ex.observe(0.4, centre + [0.0, 0.0, 0.06])  # going up: no prediction
+    assert ex.contact(centre, R) is None

@@ -98,7 +98,8 @@ class ApproachResult:
     lead_time_s: float | None
     contact_error_m: float | None
     servo_tick_us: float
-    subjects: list[str] = field(default_factory=list)
+    subjects: list[str] = field(default_factory=list)  # the subjects in the order they were chosen
+    subject_at_contact: str | None = None
     press_depth_m: np.ndarray | None = None  # fingertip depth under the surface (m) in the press
     press_force_n: np.ndarray | None = None  # device normal force (N) in the press
     through_object: bool = False  # the device's path cut through a non-subject object
@@ -250,7 +251,8 @@ def run_approach(
                "touching": touching, "finger": P_f[:n_ticks]}
     return ApproachResult(
         traj.object_name, obj.kind, traj.speed_m_s, t_contact, touched, in_place, lead, err,
-        cost / max(n_ticks, 1) * 1e6, order, d_f[sel], f_n[sel], through, ratio, log,
+        cost / max(n_ticks, 1) * 1e6, order, None if t_contact is None else subj[k_contact],
+        d_f[sel], f_n[sel], through, ratio, log,
     )
 
 

@@ -184,7 +184,7 @@ class PathExtrapolator:
     leverage and the measurement noise, or None with too few samples or too little descent.
     """
 
-    def __init__(self, *, window_s: float = 0.25, meas_std_m: float = 0.0008, min_span_m: float = 0.006):
+    def __init__(self, *, window_s: float = 0.4, meas_std_m: float = 0.0008, min_span_m: float = 0.006):
         self.window_s = float(window_s)
         self.var_meas = float(meas_std_m) ** 2
         self.min_span = float(min_span_m)

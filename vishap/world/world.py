@@ -88,7 +88,7 @@ class World:
         path_margin_m: float = 0.003,
         clearance_m: float = 0.01,
         max_force_n: float = DEFAULT_MAX_FORCE_N,
-        contact_model: str = "ray",
+        contact_model: str = "path",
         engage_m: float = 0.0003,
     ):
         if contact_model not in ("ray", "path"):
