@@ -47,6 +47,8 @@ class KalmanCV:
         self.S = np.eye(d)         # last innovation covariance
         self.misses = 0            # consecutive update(None) calls
         self.initialized = False
+        self._dt = None
+        self._I = np.eye(2 * d)
 
     def reset(self, z) -> None:
         """Start at position ``z`` with zero velocity and the initial covariance."""
@@ -62,13 +64,16 @@ class KalmanCV:
         """Propagate the state by ``dt`` seconds; returns the predicted position."""
         d = self.dim
         dt = float(dt)
-        if not np.isfinite(dt) or dt < 0:
+        if not (dt >= 0.0 and dt < np.inf):
             raise ShapeError(f"dt: expected a finite time step ≥ 0 s, got {dt}")
-        self.F[:d, d:] = np.eye(d) * dt
-        q = self.q
-        self.Q[:d, :d] = np.eye(d) * q * dt ** 3 / 3
-        self.Q[:d, d:] = self.Q[d:, :d] = np.eye(d) * q * dt ** 2 / 2
-        self.Q[d:, d:] = np.eye(d) * q * dt
+        if dt != self._dt:  # F and Q depend on dt only: rebuild when it changes
+            self._dt = dt
+            q = self.q
+            idx = np.arange(d)
+            self.F[idx, idx + d] = dt
+            self.Q[idx, idx] = q * dt ** 3 / 3
+            self.Q[idx, idx + d] = self.Q[idx + d, idx] = q * dt ** 2 / 2
+            self.Q[idx + d, idx + d] = q * dt
         self.x = self.F @ self.x
         self.P = self.F @ self.P @ self.F.T + self.Q
         self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
@@ -80,14 +85,18 @@ class KalmanCV:
             self.misses += 1
             self.x_post, self.P_post = self.x.copy(), self.P.copy()
             return
-        z = np.asarray(z, dtype=np.float64).reshape(self.dim)
+        d = self.dim
+        z = np.asarray(z, dtype=np.float64).reshape(d)
         if not np.all(np.isfinite(z)):
             raise ShapeError("z: measurement contains NaN or inf")
-        self.y = z - self.H @ self.x
-        self.S = self.H @ self.P @ self.H.T + self.R
-        K = np.linalg.solve(self.S, self.H @ self.P).T
+        # H = [I 0]: H x, H P Hᵀ and P Hᵀ are slices
+        self.y = z - self.x[:d]
+        PHt = self.P[:, :d]
+        self.S = PHt[:d] + self.R
+        K = np.linalg.solve(self.S, PHt.T).T
         self.x = self.x + K @ self.y
-        I_KH = np.eye(2 * self.dim) - K @ self.H
+        I_KH = self._I.copy()
+        I_KH[:, :d] -= K
         self.P = I_KH @ self.P @ I_KH.T + K @ self.R @ K.T  # Joseph form
         self.x_post, self.P_post = self.x.copy(), self.P.copy()
         self.misses = 0

@@ -1,0 +1,293 @@
+"""``vishap bench vision``: speed against accuracy of the VisHap §2.1 pipeline and the peers a user
+would pick instead, on the same labelled frames.
+
+* pipeline: tracked-window mode and full-frame mode (ms per stereo pair, tip 2-D/3-D RMS);
+* segmentation: parameter variants (bins, tile size, median size, hue×saturation bins), the
+  torch/kornia batch backend (checked mask-for-mask against NumPy/OpenCV), and OpenCV's MOG2, KNN,
+  CNT and GSOC background subtractors with the same skin model and median filter;
+* stereo: sparse rectified triangulation against dense StereoBM / StereoSGBM sampled at the tip;
+* Kalman: this filter against ``cv2.KalmanFilter`` and filterpy on the same measurements.
+
+Data: ``--data DIR...`` (folders written by ``vishap synth``); default the committed sample
+``datasets/synthetic/sample`` when present, else a toy sequence written on the fly.
+"""
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from vishap.bench._common import machine_info, median_us, new_figure, save_figure, time_calls
+
+HELP = "vision pipeline: segmentation, detection, stereo and Kalman against OpenCV/torch/filterpy peers"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", nargs="*", default=None, help="synthetic sequence folders (default: committed sample)")
+    p.add_argument("--frames", type=int, default=60, help="frames per sequence (default 60)")
+    p.add_argument("--skin", default=None, help="skin model YAML (default: the shipped model)")
+    p.add_argument("--quick", action="store_true", help="fewer variants and peers (for a smoke run)")
+
+
+def _default_data(tmp: Path) -> list[Path]:
+    sample = Path(__file__).resolve().parents[2] / "datasets" / "synthetic" / "sample"
+    if (sample / "rig.yaml").is_file():
+        return [sample]
+    from vishap.vision.toy import write_sequence
+
+    write_sequence(tmp / "toy", seed=3, frames=40, learn=10, size=(640, 480))
+    return [tmp / "toy"]
+
+
+def _load(folder, n):
+    from vishap.vision.evaluate import open_sequence
+
+    seq = open_sequence(folder)
+    return seq, [seq[i] for i in range(min(n, len(seq)))]
+
+
+def _ratios(masks, frames):
+    from vishap.vision.evaluate import segmentation_ratios
+
+    c = np.zeros(4, np.int64)
+    for m, f in zip(masks, frames):
+        c += segmentation_ratios(m, f.labels_left)
+    return {"seg_correct": c[0] / c[3], "seg_false_positive": c[1] / c[3], "seg_false_negative": c[2] / c[3]}
+
+
+def _bench_segmentation(frames, learn, skin, quick):
+    from vishap.vision.segment import SegmentConfig, Segmenter
+    from vishap.vision.segment_torch import TorchSegmenter
+
+    bg, live = frames[:learn], frames[learn:]
+    variants = {"paper (5 px tiles, 8 bins, median 5)": SegmentConfig()}
+    if not quick:
+        variants |= {
+            "bins 4": SegmentConfig(bins=4), "bins 16": SegmentConfig(bins=16),
+            "tile 3": SegmentConfig(tile=3), "tile 8": SegmentConfig(tile=8),
+            "median 1": SegmentConfig(median=1), "median 3": SegmentConfig(median=3), "median 7": SegmentConfig(median=7),
+            "no tile dilation": SegmentConfig(dilate_tiles=0), "hue×sat 8×4": SegmentConfig(sat_bins=4),
+        }
+    out = {}
+    for name, cfg in variants.items():
+        seg = Segmenter(skin, cfg)
+        seg.learn([f.left for f in bg])
+        masks = [seg.segment(f.left) for f in live]
+        k = iter(range(10 ** 9))
+        dt = time_calls(lambda: seg.segment(live[next(k) % len(live)].left), 3 * len(live))
+        dense = time_calls(lambda: seg.segment(live[next(k) % len(live)].left, method="dense"), len(live))
+        out[name] = {"kind": "variant", "ms_per_image": median_us(dt) / 1e3, "ms_per_image_dense_tiles": median_us(dense) / 1e3,
+                     **_ratios(masks, live)}
+        if name.startswith("paper"):
+            ref_masks, ref_seg = masks, seg
+    # torch/kornia batch backend: same masks, time per image in a batch (HSV conversion included)
+    tseg = TorchSegmenter(skin, ref_seg.config, ref_seg.background)
+    hsv = lambda: np.stack([cv2.cvtColor(f.left, cv2.COLOR_BGR2HSV) for f in live])
+    tmasks = tseg.segment(hsv())
+    dt = time_calls(lambda: tseg.segment(hsv()), 3, warmup=1)
+    out["torch/kornia batch"] = {"kind": "backend", "ms_per_image": median_us(dt) / 1e3 / len(live),
+                                 "same_masks_as_numpy": bool(np.array_equal(tmasks, np.stack(ref_masks))),
+                                 **_ratios(list(tmasks), live)}
+    # OpenCV background subtractors + the same skin model and median
+    peers = {"MOG2": cv2.createBackgroundSubtractorMOG2, "KNN": cv2.createBackgroundSubtractorKNN,
+             "CNT": cv2.bgsegm.createBackgroundSubtractorCNT}
+    if not quick:
+        peers["GSOC"] = cv2.bgsegm.createBackgroundSubtractorGSOC
+    med = ref_seg.config.median
+    for name, make in peers.items():
+        sub = make()
+        for f in bg:
+            sub.apply(f.left)
+        masks, times = [], []
+        for f in live:
+            t0 = time.perf_counter()
+            fg = sub.apply(f.left)
+            m = cv2.bitwise_and(skin.mask(f.left), skin.mask(f.left), mask=(fg == 255).view(np.uint8))
+            m = cv2.medianBlur(m, med) if med > 1 else m
+            times.append(time.perf_counter() - t0)
+            masks.append(m)
+        out[f"{name} + skin + median"] = {"kind": "peer", "ms_per_image": float(np.median(times) * 1e3), **_ratios(masks, live)}
+    return out
+
+
+def _bench_pipeline(folder, n, skin):
+    from vishap.vision.evaluate import evaluate_sequence
+    from vishap.vision.pipeline import PipelineConfig
+
+    out = {}
+    for name, cfg in (("tracked window", PipelineConfig()), ("full frame", PipelineConfig(tracking=False)),
+                      ("tracked, no recheck", PipelineConfig(recheck_frames=0))):
+        r = evaluate_sequence(folder, skin_model=skin, config=cfg, max_frames=n, seg_every=10 ** 9)
+        out[name] = {k: r[k] for k in ("ms_per_pair", "ms_per_pair_tracked", "ms_per_pair_full", "tip2d_rms_px",
+                                       "tip3d_rms_mm", "tip3d_median_mm", "detection_rate", "false_detections",
+                                       "track_losses", "visible_frames")}
+    return out
+
+
+def _bench_stereo(seq, frames, skin, learn):
+    from vishap.vision.pipeline import VisionPipeline
+    from vishap.vision.stereo import DenseMatcher, dense_tip, triangulate_tip
+
+    rig, gt = seq.rig, seq.gt
+    pipe = VisionPipeline(rig, skin_model=skin)
+    rows = []
+    for i, f in enumerate(frames):
+        e = pipe.process(f)
+        vis = bool(gt["tip_visible_left"][i] and gt["tip_visible_right"][i]) if "tip_visible_left" in gt else True
+        if e.found and vis and i >= learn:
+            rows.append((f, e, gt["tip_cam"][i]))
+    out = {}
+    if not rows:
+        return {"note": "no frame with a detected, visible tip"}
+    methods = {"sparse (rectified triangulation)": lambda f, e: triangulate_tip(rig, e.uv_left, e.uv_right)}
+    for m in ("bm", "sgbm"):
+        dm = DenseMatcher(rig, m)
+        methods[f"dense {m.upper()} (rows around the tip)"] = lambda f, e, dm=dm: dense_tip(dm, f.left, f.right, e.uv_left)
+    for name, fn in methods.items():
+        errs, times = [], []
+        for f, e, p in rows:
+            t0 = time.perf_counter()
+            sp = fn(f, e)
+            times.append(time.perf_counter() - t0)
+            errs.append(np.linalg.norm(sp.p_cam - p) if sp.ok else np.nan)
+        errs = np.array(errs)
+        out[name] = {"ms_per_pair": float(np.median(times) * 1e3), "tip3d_rms_mm": float(np.sqrt(np.nanmean(errs ** 2)) * 1e3)
+                     if np.any(np.isfinite(errs)) else None, "valid_fraction": float(np.mean(np.isfinite(errs)))}
+    f0 = rows[0][0]
+    lr, rr = rig.rectify_image(f0.left, "left"), rig.rectify_image(f0.right, "right")
+    for m in ("bm", "sgbm"):
+        dm = DenseMatcher(rig, m)
+        out[f"dense {m.upper()} full image (paper's disparity image)"] = {
+            "ms_per_pair": median_us(time_calls(lambda: dm.disparity(lr, rr), 3, warmup=1)) / 1e3}
+    return out
+
+
+def _bench_kalman(gt, rng):
+    from vishap.vision.track import KalmanCV
+
+    truth = np.asarray(gt["tip_uv_left"], dtype=np.float64)
+    truth = truth[np.all(np.isfinite(truth), axis=1)]
+    if len(truth) < 5:
+        return {}
+    z = truth + rng.normal(0, 0.5, truth.shape)
+    dt, q, r = 1 / 30, 2e5, 0.25
+    out = {}
+
+    def run_mine():
+        kf = KalmanCV(2, q=q, r=r)
+        kf.reset(z[0])
+        est = [z[0]]
+        for zi in z[1:]:
+            kf.predict(dt)
+            kf.update(zi)
+            est.append(kf.position.copy())
+        return np.array(est)
+
+    def run_cv2():
+        kf = cv2.KalmanFilter(4, 2, 0, cv2.CV_64F)
+        kf.transitionMatrix = np.array([[1, 0, dt, 0], [0, 1, 0, dt], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+        kf.measurementMatrix = np.hstack([np.eye(2), np.zeros((2, 2))])
+        Q = np.zeros((4, 4))
+        for i in (0, 1):
+            Q[np.ix_([i, i + 2], [i, i + 2])] = q * np.array([[dt ** 3 / 3, dt ** 2 / 2], [dt ** 2 / 2, dt]])
+        kf.processNoiseCov = Q
+        kf.measurementNoiseCov = np.eye(2) * r
+        kf.statePost = np.array([[z[0, 0]], [z[0, 1]], [0.0], [0.0]])
+        kf.errorCovPost = np.diag([4.0, 4.0, 1e4, 1e4])
+        est = [z[0]]
+        for zi in z[1:]:
+            kf.predict()
+            s = kf.correct(zi.reshape(2, 1))
+            est.append(s[:2, 0].copy())
+        return np.array(est)
+
+    runners = {"this KalmanCV (NumPy)": run_mine, "cv2.KalmanFilter": run_cv2}
+    try:
+        from filterpy.common import Q_continuous_white_noise
+        from filterpy.kalman import KalmanFilter
+
+        def run_fp():
+            kf = KalmanFilter(dim_x=4, dim_z=2)
+            kf.F = np.array([[1, 0, dt, 0], [0, 1, 0, dt], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+            kf.H = np.hstack([np.eye(2), np.zeros((2, 2))])
+            Q1 = Q_continuous_white_noise(dim=2, dt=dt, spectral_density=q)
+            kf.Q = np.zeros((4, 4))
+            for i in (0, 1):
+                kf.Q[np.ix_([i, i + 2], [i, i + 2])] = Q1
+            kf.R = np.eye(2) * r
+            kf.x = np.array([z[0, 0], z[0, 1], 0.0, 0.0])
+            kf.P = np.diag([4.0, 4.0, 1e4, 1e4])
+            est = [z[0]]
+            for zi in z[1:]:
+                kf.predict()
+                kf.update(zi)
+                est.append(kf.x[:2].copy())
+            return np.array(est)
+
+        runners["filterpy"] = run_fp
+    except ImportError:
+        pass
+    ref = run_mine()
+    for name, fn in runners.items():
+        est = fn()
+        dts = time_calls(fn, 5, warmup=1)
+        out[name] = {"us_per_step": float(np.median(dts) / (len(z) - 1) * 1e6),
+                     "rms_px": float(np.sqrt(np.mean((est - truth) ** 2))),
+                     "max_diff_from_this_px": float(np.max(np.abs(est - ref)))}
+    out["raw measurements"] = {"us_per_step": 0.0, "rms_px": float(np.sqrt(np.mean((z - truth) ** 2)))}
+    return out
+
+
+def run(args: argparse.Namespace) -> dict:
+    from vishap.vision.skin_model import SkinModel
+
+    out_dir = Path(args.out)
+    skin = SkinModel.load(args.skin) if args.skin else SkinModel.load()
+    rng = np.random.default_rng(0)
+    record = {"machine": machine_info(), "cv2_threads": cv2.getNumThreads(), "sequences": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        folders = [Path(d) for d in args.data] if args.data else _default_data(Path(tmp))
+        for folder in folders:
+            seq, frames = _load(folder, args.frames)
+            learn = 10
+            rec = {"frames": len(frames), "skin_model": skin.source}
+            rec["pipeline"] = _bench_pipeline(folder, args.frames, skin)
+            rec["segmentation"] = _bench_segmentation(frames, learn, skin, args.quick)
+            rec["stereo"] = _bench_stereo(seq, frames, skin, learn)
+            rec["kalman"] = _bench_kalman(seq.gt, rng)
+            record["sequences"][folder.name] = rec
+    record["chart"] = str(_chart(record, out_dir / "vision_speed_accuracy.png"))
+    return record
+
+
+def _chart(record, path):
+    fig, axes = new_figure(2, 2, figsize=(13, 9))
+    (a1, a2), (a3, a4) = axes
+    for sname, rec in record["sequences"].items():
+        for name, r in rec["segmentation"].items():
+            mk = {"variant": "o", "backend": "s", "peer": "^"}[r["kind"]]
+            a1.scatter(r["ms_per_image"], 100 * r["seg_correct"], marker=mk)
+            a1.annotate(f"{name}", (r["ms_per_image"], 100 * r["seg_correct"]), fontsize=7)
+        for name, r in rec["pipeline"].items():
+            if r["ms_per_pair"] is not None and r["tip3d_rms_mm"] is not None:
+                a2.scatter(r["ms_per_pair"], r["tip3d_rms_mm"])
+                a2.annotate(f"{name} (det {r['detection_rate']:.2f})", (r["ms_per_pair"], r["tip3d_rms_mm"]), fontsize=7)
+        for name, r in rec["stereo"].items():
+            if isinstance(r, dict) and r.get("tip3d_rms_mm") is not None:
+                a3.scatter(r["ms_per_pair"], r["tip3d_rms_mm"])
+                a3.annotate(f"{name} (valid {r['valid_fraction']:.2f})", (r["ms_per_pair"], r["tip3d_rms_mm"]), fontsize=7)
+        for name, r in rec["kalman"].items():
+            a4.scatter(max(r["us_per_step"], 0.1), r["rms_px"])
+            a4.annotate(name, (max(r["us_per_step"], 0.1), r["rms_px"]), fontsize=7)
+    a1.set(xscale="log", xlabel="ms per 640×480 image (median)", ylabel="segmentation correct, %",
+           title="Segmentation: variants, torch backend (■), OpenCV subtractors (▲)")
+    a2.set(xlabel="ms per stereo pair (median)", ylabel="tip 3-D RMS, mm", title="Pipeline modes")
+    a3.set(xscale="log", xlabel="ms per pair", ylabel="tip 3-D RMS, mm", title="Stereo: sparse vs dense")
+    a4.set(xscale="log", xlabel="µs per predict+update", ylabel="RMS vs truth, px", title="Kalman filters")
+    for a in (a1, a2, a3, a4):
+        a.grid(alpha=0.3)
+    return save_figure(fig, path)
