@@ -46,15 +46,15 @@ def allocate(state: ContactState, force_n: float, band_amp: np.ndarray, band_hz:
     """Channel targets for one tick (see the module docstring for the rules)."""
     al = cfg.allocation
     key = state.value
-    load = float(np.clip(force_n / al.glove_force_full_n, 0.0, 1.0))
+    load = min(max(force_n / al.glove_force_full_n, 0.0), 1.0)
     glove_w = al.glove_weight[key]
     g_lo, g_hi = al.glove_band_hz
-    osc_hz = float(np.clip(band_hz[0], g_lo, g_hi))
+    osc_hz = min(max(float(band_hz[0]), g_lo), g_hi)
     sleeve = al.sleeve_weight[key] if time_in_state_s >= al.texture_delay_s[key] else 0.0
 
     if isinstance(x_cm, tuple):  # distance from each μᵢ to the swept span (0 inside it)
         lo, hi = x_cm
-        x_eff = np.clip(regions.mu_cm, lo, hi)
+        x_eff = np.minimum(np.maximum(regions.mu_cm, lo), hi)
         d = np.abs(x_eff - regions.mu_cm)
         decay = np.exp(-regions.lambda_per_cm * d)
         w = decay if cfg.control.spatial_kernel == "decay" else 1.0 - decay

@@ -51,7 +51,7 @@ def phsm_targets(attrs: SurfaceAttributes, speed_m_s: float, force_n: float, ban
                  force_full_n: float = 1.5, n_harmonics: int = 6, speed_ref_m_s: float = 0.05) -> list[BandTarget]:
     """Multi-band targets for a contact at tangential ``speed_m_s`` with normal ``force_n``."""
     speed = max(float(speed_m_s), 0.0)
-    load = float(np.clip(force_n / force_full_n, 0.0, 1.0))
+    load = min(max(force_n / force_full_n, 0.0), 1.0)
     h, e, r, mu, ve = attrs.hardness, attrs.elasticity, attrs.roughness, attrs.friction, attrs.viscoelasticity
     attack = 0.005 + 0.045 * ve
     release = attack * (1.0 + e)

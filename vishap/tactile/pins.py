@@ -169,7 +169,7 @@ class PinRenderer:
 
     def inside(self, pad_centre_m, pad_radius_m) -> np.ndarray:
         """Mask of pins inside the elliptical contact patch on the pad."""
-        ax, ay = np.broadcast_to(np.asarray(pad_radius_m, dtype=np.float64), (2,))
+        ax, ay = (float(pad_radius_m), float(pad_radius_m)) if np.ndim(pad_radius_m) == 0 else (float(pad_radius_m[0]), float(pad_radius_m[1]))
         if ax <= 0 or ay <= 0:
             return np.zeros(self.n_pins, dtype=bool)
         d = self.pin_pad_m - np.asarray(pad_centre_m, dtype=np.float64)

@@ -96,19 +96,20 @@ class TactileRenderer:
             umap = nonuniformity_map(cfg.pins, rng)
         self.pins = PinRenderer(cfg.pins, tile, umap=umap)
         self.heading_rad = heading_rad
-        self.osc_regions = Oscillators(3, self.fs)
-        self.osc_pins = Oscillators(2, self.fs)
-        self.osc_glove = Oscillators(1, self.fs)
-        self._carrier_hz = np.array([cfg.pins.f_low_hz, cfg.pins.f_high_hz])
-        self._ones2, self._zeros2 = np.ones(2), np.zeros(2)
+        # one bank: R1–R3, the HAPTEX 40 Hz and 320 Hz carriers, the glove's force-band oscillation
+        self.osc = Oscillators(6, self.fs)
+        self._freq = np.zeros(6)
+        self._freq[3:5] = (cfg.pins.f_low_hz, cfg.pins.f_high_hz)
+        self._amp = np.zeros(6)
+        self._amp[3:5] = 1.0
+        self._phi = np.zeros(6)
         self.reset()
 
     # ------------------------------------------------------------------------------------------
     def reset(self) -> None:
-        for part in (self.tracker, self.classifier, self.predictor, self.controller, self.jnd, self.pins,
-                     self.osc_regions, self.osc_pins, self.osc_glove):
+        for part in (self.tracker, self.classifier, self.predictor, self.controller, self.jnd, self.pins, self.osc):
             part.reset()
-        self.osc_pins.amp[:] = 1.0  # the two HAPTEX carriers run at unit amplitude; pins scale them
+        self.osc.amp[3:5] = 1.0  # the two HAPTEX carriers run at unit amplitude; pins scale them
         self.clock = None            # time up to which samples have been produced
         self.state = ContactState.NONE
         self.effective_state = ContactState.NONE
@@ -125,7 +126,8 @@ class TactileRenderer:
         self.pin_prev = np.zeros((2, self.pins.n_pins))
         self.features = None
         self._phsm_key = None
-        self._x_hist: deque[tuple[float, float]] = deque()
+        self._t_hist: deque[float] = deque()
+        self._x_hist: deque[float] = deque()
         self.prearmed = False
         self.trace: list[dict] | None = None
 
@@ -143,7 +145,8 @@ class TactileRenderer:
         if s.contact_radius_m is not None:
             radius = s.contact_radius_m
         else:
-            radius = np.full(2, hertz_radius(force, self.cfg.sensor))
+            a = hertz_radius(force, self.cfg.sensor)
+            radius = np.array([a, a])
         p = self.array.pressure(centre, radius, force)
         f = self.tracker.update(SensorFrame(s.t, p))
         if s.pad_position is None and f.in_contact:
@@ -160,7 +163,7 @@ class TactileRenderer:
         if self.clock is None:
             self.clock = t
         n = int(round((t + self.tick_s - self.clock) * self.fs))
-        n = int(np.clip(n, 0, int(0.05 * self.fs)))  # catch up after a stall, at most 50 ms at once
+        n = min(max(n, 0), int(0.05 * self.fs))  # catch up after a stall, at most 50 ms at once
         dt = n / self.fs if n else self.tick_s
         t0 = self.clock
         self.clock = t0 + n / self.fs
@@ -184,14 +187,16 @@ class TactileRenderer:
             self._phsm = ([b.amplitude for b in tg], [b.frequency_hz for b in tg])
         self.jnd.update(*self._phsm)
         x_cm = 100.0 * (feats.centroid_m[0] if feats.in_contact else centre[0])
-        hist = self._x_hist
+        ht, hx = self._t_hist, self._x_hist
         if not feats.in_contact:
-            hist.clear()
-        hist.append((t, x_cm))
-        while hist[0][0] < t - self.REGION_MEMORY_S:
-            hist.popleft()
-        xs = [x for _, x in hist]
-        alloc = allocate(eff, force, self.jnd.amplitude, self.jnd.frequency, regions, (min(xs), max(xs)),
+            ht.clear()
+            hx.clear()
+        ht.append(t)
+        hx.append(x_cm)
+        while ht[0] < t - self.REGION_MEMORY_S:
+            ht.popleft()
+            hx.popleft()
+        alloc = allocate(eff, force, self.jnd.amplitude, self.jnd.frequency, regions, (min(hx), max(hx)),
                          self.surface.roughness, cfg, time_in_state_s=t - self.state_since)
 
         # continuity limits (§2.4): every amplitude is slew-limited
@@ -238,16 +243,20 @@ class TactileRenderer:
         return self.pin_from + (self.pin_to - self.pin_from) * s
 
     def _synth(self, n: int, t0: float, regions, pin_amp: np.ndarray, glove_hz: float) -> DriveBlock:
-        reg = self.osc_regions.run(n, regions.beta_hz, self.region_amp, regions.phi_rad)
-        car = self.osc_pins.run(n, self._carrier_hz, self._ones2, self._zeros2)
-        r = self.osc_pins._r
+        f, a, ph = self._freq, self._amp, self._phi
+        f[:3], f[5] = regions.beta_hz, glove_hz
+        a[:3], a[5] = self.region_amp, self.glove_osc
+        ph[:3] = regions.phi_rad
+        y = self.osc.run(n, f, a, ph)
+        reg, car = y[:3], y[3:5]
+        r = self.osc._r
         a40 = self.pin_prev[0][:, None] + (pin_amp[0] - self.pin_prev[0])[:, None] * r
         a320 = self.pin_prev[1][:, None] + (pin_amp[1] - self.pin_prev[1])[:, None] * r
         self.pin_prev = pin_amp
         pins = a40 * car[0] + a320 * car[1]
         support = self._glove_prev + (self.glove_support - self._glove_prev) * r
         self._glove_prev = self.glove_support
-        glove = support + self.osc_glove.run(n, [glove_hz], [self.glove_osc], [0.0])[0]
+        glove = support + y[5]
         out = []
         for x in (glove, reg, pins):
             if not np.isfinite(x).all():  # never hand NaN/inf to a device

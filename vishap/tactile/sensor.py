@@ -20,6 +20,13 @@ import numpy as np
 
 from vishap.tactile.config import SensorConfig
 
+def _pair(v) -> tuple[float, float]:
+    """A scalar or a 2-sequence as two floats."""
+    if np.ndim(v) == 0:
+        return float(v), float(v)
+    return float(v[0]), float(v[1])
+
+
 __all__ = ["SensorArray", "SensorFrame", "ContactFeatures", "FeatureTracker", "hertz_radius"]
 
 
@@ -68,7 +75,7 @@ class SensorArray:
     def unit_pressure(self, centre_m, radius_m, *, quantum_m: float = 2e-5) -> np.ndarray:
         """Element pressures per newton (Pa/N); the geometry is snapped to ``quantum_m`` (20 µm) and
         cached, since for a fixed footprint the pressure scales exactly with the force."""
-        ax, ay = np.broadcast_to(np.asarray(radius_m, dtype=np.float64), (2,))
+        ax, ay = _pair(radius_m)
         key = (round(float(centre_m[0]) / quantum_m), round(float(centre_m[1]) / quantum_m),
                round(max(ax, 1e-5) / quantum_m), round(max(ay, 1e-5) / quantum_m))
         hit = self._cache.get(key)

@@ -92,10 +92,12 @@ def worked_example(name: str) -> PatchTrack:
 def labelled_sequence(label: ContactState, rng: np.random.Generator, *, duration_s: float = 0.6) -> PatchTrack:
     """One randomised synthetic action labelled by what generated it.
 
-    concentrated: fingertip press near R1 (area 0.2–0.65 cm², 0.3–1.0 N), slow drift ≤ 3 cm/s,
-    force wobble ±15 %; distributed: pad stroke near R2 (area 1.4–2.2 cm², mean pressure 2.8–4.5 kPa) drifting
-    up to 8 cm/s with ±4 % force wobble; slip: edge sweep from R3 towards R1 at 18–35 cm/s, oblique,
-    with ±20 % pressure pulses.
+    concentrated: fingertip press near R1 (area 0.2–0.65 cm², 0.3–1.0 N), slow drift ≤ 3 cm/s, force
+    wobble ±15 %; one in three is a firm tapping press (3–6 Hz, peaks to 1.6–2.2 N, so the patch briefly
+    exceeds the broad-area threshold without ever being stable). distributed: pad stroke near R2
+    (area 1.4–2.2 cm², mean pressure 2.8–4.5 kPa) stroking back and forth at 1–3 Hz with peak speed up
+    to 14 cm/s and ±4 % force wobble. slip: edge sweep from R3 towards R1 at 18–35 cm/s, oblique, with
+    ±20 % pressure pulses.
     """
     if label == ContactState.SLIP:
         speed = rng.uniform(0.18, 0.35)
@@ -117,6 +119,8 @@ def labelled_sequence(label: ContactState, rng: np.random.Generator, *, duration
     t = np.arange(0.0, duration_s, DT)
     ramp = _smooth(t / 0.04)
     heading = rng.uniform(0, 2 * np.pi)
+    tapping = False
+    freq = 1.0
     if label == ContactState.CONCENTRATED:
         c0 = np.array([rng.uniform(0.030, 0.045), rng.uniform(-0.002, 0.002)])
         drift = rng.uniform(0.0, 0.03)
@@ -124,21 +128,30 @@ def labelled_sequence(label: ContactState, rng: np.random.Generator, *, duration
         aspect = rng.uniform(1.0, 1.3)
         f = rng.uniform(0.3, 1.0)
         wob = 0.15
+        tapping = rng.uniform() < 1 / 3
     elif label == ContactState.DISTRIBUTED:
         c0 = np.array([rng.uniform(0.045, 0.055), rng.uniform(-0.001, 0.001)])
-        drift = rng.uniform(0.0, 0.08)
+        drift = rng.uniform(0.0, 0.14)
+        freq = rng.uniform(1.0, 3.0)
         area = rng.uniform(1.4e-4, 2.2e-4)
         aspect = rng.uniform(1.6, 2.4)
         f = area * rng.uniform(2800.0, 4500.0)  # mean pressure 2.8–4.5 kPa (paper: 0.48 N / 1.6 cm² = 3 kPa)
         wob = 0.04
     else:
         raise KeyError(f"no labelled sequence for {label!r}")
-    # drift back and forth along the heading (bounded excursion of at most 1 cm)
-    amp = min(0.01, drift / (2 * np.pi * 1.0))
-    disp = amp * np.sin(2 * np.pi * 1.0 * t)
+    # stroke back and forth along the heading (excursion of at most 1 cm, peak speed = drift)
+    amp = min(0.01, drift / (2 * np.pi * freq))
+    disp = amp * np.sin(2 * np.pi * freq * t)
     centre = c0 + np.outer(disp, [np.cos(heading), 0.3 * np.sin(heading)])
-    radius = np.outer(np.maximum(ramp, 0.05) ** (1 / 3), _radius_for_area(area, aspect))
-    force = f * ramp * (1 + wob * np.sin(2 * np.pi * rng.uniform(1.0, 4.0) * t + rng.uniform(0, 6.3)))
+    if tapping:  # firm taps: force 0.2…1 × F_peak at 3–6 Hz, the Hertz patch breathing with it
+        f_peak = rng.uniform(1.6, 2.2)
+        tap = 0.5 - 0.5 * np.cos(2 * np.pi * rng.uniform(3.0, 6.0) * t)
+        force = ramp * f_peak * (0.2 + 0.8 * tap)
+        scale = np.maximum(force / f_peak, 0.05) ** (1 / 3) * np.sqrt(1.3e-4 / area)
+        radius = np.outer(scale, _radius_for_area(area, aspect))
+    else:
+        radius = np.outer(np.maximum(ramp, 0.05) ** (1 / 3), _radius_for_area(area, aspect))
+        force = f * ramp * (1 + wob * np.sin(2 * np.pi * rng.uniform(1.0, 4.0) * t + rng.uniform(0, 6.3)))
     return PatchTrack(t, centre, radius, force, label, SETTLE_S[label] + 0.04)
 
 

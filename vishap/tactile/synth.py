@@ -21,7 +21,8 @@ def ramp(prev: np.ndarray, tracks: np.ndarray, n: int) -> np.ndarray:
     r = (np.arange(1, n + 1) / n)[None, None, :]
     s0 = np.ascontiguousarray(start.T)[:, :, None]
     d = np.ascontiguousarray((tracks - start).T)[:, :, None]
-    out = s0 + d * r  # (C, T, n), contiguous
+    out = np.multiply(d, r)  # (C, T, n), contiguous
+    out += s0
     return out.reshape(tracks.shape[1], -1)
 
 
@@ -88,29 +89,46 @@ def trace_arrays(trace: list[dict]) -> dict[str, np.ndarray]:
     return {k: np.array([d[k] for d in trace]) for k in trace[0]}
 
 
-def resynthesize(tracks: dict[str, np.ndarray], fs: float, carrier_hz=(40.0, 320.0)) -> dict[str, np.ndarray]:
-    """Render control tracks (:func:`trace_arrays`) in one vectorised pass.
+def resynthesize(tracks: dict[str, np.ndarray], fs: float, carrier_hz=(40.0, 320.0), *,
+                 chunk_ticks: int = 256) -> dict[str, np.ndarray]:
+    """Render control tracks (:func:`trace_arrays`) vectorised, in cache-sized chunks of ticks.
 
     Gives the same glove (N,), regions (3, N) and pins (24, N) signals as the tick-by-tick
-    renderer, from the per-tick amplitudes, frequencies and phases. Ticks must have equal length.
+    renderer (the same 6-oscillator bank: R1–R3, the 40/320 Hz carriers, the glove oscillation),
+    from the per-tick amplitudes, frequencies and phases. Ticks must have equal length.
     """
     ns = np.unique(tracks["n"])
     if len(ns) != 1:
         raise ValueError(f"resynthesize needs equal tick lengths, got {ns.tolist()}")
     n = int(ns[0])
     T = len(tracks["n"])
-    regions, _ = synthesize(fs, n, np.zeros(3), tracks["beta"], np.zeros(3), tracks["region_amp"], np.zeros(3),
-                            tracks["phi"])
-    car_f = np.broadcast_to(np.asarray(carrier_hz, dtype=np.float64), (T, 2))
-    car, _ = synthesize(fs, n, np.zeros(2), car_f, np.ones(2), np.ones((T, 2)), np.zeros(2), np.zeros((T, 2)))
-    pin_amp = tracks["pin_amp"]  # (T, 2, P)
-    P = pin_amp.shape[2]
-    a = ramp(np.zeros(2 * P), pin_amp.reshape(T, 2 * P), n).reshape(2, P, -1)
-    a[0] *= car[0]
-    a[1] *= car[1]
-    pins = np.add(a[0], a[1], out=a[0])
-    support = ramp(np.zeros(1), tracks["glove_support"][:, None], n)[0]
-    osc, _ = synthesize(fs, n, np.zeros(1), tracks["glove_hz"][:, None], np.zeros(1), tracks["glove_osc"][:, None],
-                        np.zeros(1), np.zeros((T, 1)))
-    glove = support + osc[0]
-    return {"glove": np.clip(glove, -1, 1), "regions": np.clip(regions, -1, 1), "pins": np.clip(pins, -1, 1, out=pins)}
+    freq = np.empty((T, 6))
+    freq[:, :3], freq[:, 3:5], freq[:, 5] = tracks["beta"], carrier_hz, tracks["glove_hz"]
+    amp = np.ones((T, 6))
+    amp[:, :3], amp[:, 5] = tracks["region_amp"], tracks["glove_osc"]
+    phi = np.zeros((T, 6))
+    phi[:, :3] = tracks["phi"]
+    pin_amp = tracks["pin_amp"].reshape(T, -1)  # (T, 2P)
+    P = pin_amp.shape[1] // 2
+    g_sup = tracks["glove_support"][:, None]
+    out_g = np.empty(T * n)
+    out_r = np.empty((3, T * n))
+    out_p = np.empty((P, T * n))
+    phase = np.zeros(6)
+    prev_a = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
+    prev_phi, prev_p, prev_gs = np.zeros(6), np.zeros(2 * P), np.zeros(1)
+    for a in range(0, T, chunk_ticks):
+        b = min(a + chunk_ticks, T)
+        sl = slice(a * n, b * n)
+        y, phase = synthesize(fs, n, phase, freq[a:b], prev_a, amp[a:b], prev_phi, phi[a:b])
+        out_r[:, sl] = y[:3]
+        amps = ramp(prev_p, pin_amp[a:b], n)  # (2P, m·n)
+        blk = out_p[:, sl]
+        np.multiply(amps[:P], y[3], out=blk)
+        amps[P:] *= y[4]
+        blk += amps[P:]
+        out_g[sl] = ramp(prev_gs, g_sup[a:b], n)[0] + y[5]
+        prev_a, prev_phi, prev_p, prev_gs = amp[b - 1], phi[b - 1], pin_amp[b - 1], g_sup[b - 1]
+    for x in (out_g, out_r, out_p):
+        np.clip(x, -1.0, 1.0, out=x)
+    return {"glove": out_g, "regions": out_r, "pins": out_p}
