@@ -15,10 +15,12 @@ __all__ = ["synthesize", "ramp", "Oscillators", "trace_arrays", "resynthesize"]
 
 
 def ramp(prev: np.ndarray, tracks: np.ndarray, n: int) -> np.ndarray:
-    """Linear per-sample ramps: ``prev`` (C,) then ``tracks`` (T, C) → (C, T·n)."""
-    tracks = np.asarray(tracks, dtype=np.float64)
-    start = np.vstack([np.asarray(prev, dtype=np.float64)[None, :], tracks[:-1]])  # (T, C)
-    r = (np.arange(1, n + 1) / n)[None, None, :]
+    """Linear per-sample ramps: ``prev`` (C,) then ``tracks`` (T, C) → (C, T·n) (float32 stays float32)."""
+    tracks = np.asarray(tracks)
+    dtype = np.float32 if tracks.dtype == np.float32 else np.float64
+    tracks = tracks.astype(dtype, copy=False)
+    start = np.vstack([np.asarray(prev, dtype=dtype)[None, :], tracks[:-1]])  # (T, C)
+    r = (np.arange(1, n + 1, dtype=dtype) / dtype(n))[None, None, :]
     s0 = np.ascontiguousarray(start.T)[:, :, None]
     d = np.ascontiguousarray((tracks - start).T)[:, :, None]
     out = np.multiply(d, r)  # (C, T, n), contiguous
@@ -95,7 +97,8 @@ def resynthesize(tracks: dict[str, np.ndarray], fs: float, carrier_hz=(40.0, 320
 
     Gives the same glove (N,), regions (3, N) and pins (24, N) signals as the tick-by-tick
     renderer (the same 6-oscillator bank: R1–R3, the 40/320 Hz carriers, the glove oscillation),
-    from the per-tick amplitudes, frequencies and phases. Ticks must have equal length.
+    from the per-tick amplitudes, frequencies and phases; the pins come back as float32 (within
+    1e-6 of the tick path). Ticks must have equal length.
     """
     ns = np.unique(tracks["n"])
     if len(ns) != 1:
@@ -108,24 +111,26 @@ def resynthesize(tracks: dict[str, np.ndarray], fs: float, carrier_hz=(40.0, 320
     amp[:, :3], amp[:, 5] = tracks["region_amp"], tracks["glove_osc"]
     phi = np.zeros((T, 6))
     phi[:, :3] = tracks["phi"]
-    pin_amp = tracks["pin_amp"].reshape(T, -1)  # (T, 2P)
+    # the 24 pins dominate the work: their amplitude ramps and carrier products run in float32
+    pin_amp = tracks["pin_amp"].reshape(T, -1).astype(np.float32)  # (T, 2P)
     P = pin_amp.shape[1] // 2
     g_sup = tracks["glove_support"][:, None]
     out_g = np.empty(T * n)
     out_r = np.empty((3, T * n))
-    out_p = np.empty((P, T * n))
+    out_p = np.empty((P, T * n), dtype=np.float32)
     phase = np.zeros(6)
     prev_a = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
-    prev_phi, prev_p, prev_gs = np.zeros(6), np.zeros(2 * P), np.zeros(1)
+    prev_phi, prev_p, prev_gs = np.zeros(6), np.zeros(2 * P, dtype=np.float32), np.zeros(1)
     for a in range(0, T, chunk_ticks):
         b = min(a + chunk_ticks, T)
         sl = slice(a * n, b * n)
         y, phase = synthesize(fs, n, phase, freq[a:b], prev_a, amp[a:b], prev_phi, phi[a:b])
         out_r[:, sl] = y[:3]
-        amps = ramp(prev_p, pin_amp[a:b], n)  # (2P, m·n)
+        amps = ramp(prev_p, pin_amp[a:b], n)  # (2P, m·n) float32
+        c = y[3:5].astype(np.float32)
         blk = out_p[:, sl]
-        np.multiply(amps[:P], y[3], out=blk)
-        amps[P:] *= y[4]
+        np.multiply(amps[:P], c[0], out=blk)
+        amps[P:] *= c[1]
         blk += amps[P:]
         out_g[sl] = ramp(prev_gs, g_sup[a:b], n)[0] + y[5]
         prev_a, prev_phi, prev_p, prev_gs = amp[b - 1], phi[b - 1], pin_amp[b - 1], g_sup[b - 1]
