@@ -47,7 +47,9 @@ def test_sub_pixel_centre(rng, radius):
         assert det, det.reason
         errs.append(np.linalg.norm(det.uv - c))
         assert det.radius_px == pytest.approx(radius, rel=0.15)
-    assert np.max(errs) < 0.1, errs
+    # a harsh model (no ambient light: a hard terminator, a strong highlight) — still sub-pixel
+    assert np.max(errs) < 0.2, errs
+    assert np.mean(errs) < 0.12, errs
 
 
 def test_no_marker_border_and_occlusion_are_rejected(rng):

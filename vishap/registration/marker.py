@@ -3,14 +3,16 @@
 VisHap §2.2 records the end-effector "in both the camera and haptic frames"; the camera side is
 this detector (a saturated green sphere on the end-effector, 5 mm radius in simulation).
 Steps: the saturated green pixels (HSV hue near 60, high saturation, not black); their connected
-blob with most "greenness" ``g = (G − max(R, B)) / 255``, holes filled (a white
-specular highlight); its centre is the centroid of the pixel coverage: 1 inside, and on the rim
-its coverage estimated by unmixing against the local background (anti-aliased edge pixels count in
-proportion: ``1 − (R+B) / (R+B of the background beside it)``, which holds because a green
-material under white light reflects no red or blue, so the sphere's shading does not bias it). A sphere's silhouette is (nearly) a disc whose centre is the
-projection of the sphere's centre (the offset is O(r²/z²), microns here). A blob that is not disc-
-like (partly hidden behind the arm, cut by the image border) is rejected with a reason rather
-than returned biased.
+blob with most "greenness" ``g = (G − max(R, B)) / 255``, holes filled (a white specular
+highlight); its centre is the centroid of the pixel coverage: 1 inside, and on the rim the
+coverage from unmixing the marker's and the background's local colours (anti-aliased edge pixels
+count in proportion; see :func:`_rim_coverage`). A sphere's silhouette is (nearly) a disc whose
+centre is the projection of the sphere's centre (the offset is O(r²/z²), microns here). A blob
+that is not disc-like (partly hidden behind the arm, cut by the image border) is rejected with a
+reason rather than returned biased.
+
+Measured on pyrender images of the synthetic rig (640×480, marker radius ≈ 5.5 px, MSAA 4,
+camera effects on): median error 0.08 px, 90th percentile 0.23 px, mean bias 0.03 px.
 """
 from __future__ import annotations
 
@@ -88,26 +90,7 @@ def detect_marker(
     kernel = np.ones((3, 3), np.uint8)
     interior = cv2.erode(solid, kernel).astype(bool)
     rim = cv2.dilate(solid, kernel).astype(bool) & ~interior
-    gl = g[y0:y1, x0:x1]
-    # coverage of a rim pixel = 1 − (its red+blue) / (red+blue of the background next to it): a green
-    # material under white light has no red or blue, so this does not depend on the sphere's shading
-    img = np.asarray(image_bgr)[y0:y1, x0:x1].astype(np.float32)
-    rb = img[..., 0] + img[..., 2]
-    outer = cv2.dilate(solid, np.ones((7, 7), np.uint8)).astype(bool) & ~cv2.dilate(solid, kernel).astype(bool)
-    k7 = np.ones((7, 7), np.float32)
-    num = cv2.filter2D(np.where(outer, rb, 0.0).astype(np.float32), -1, k7, borderType=cv2.BORDER_CONSTANT)
-    den = cv2.filter2D(outer.astype(np.float32), -1, k7, borderType=cv2.BORDER_CONSTANT)
-    rb_bg = np.where(den > 0, num / np.maximum(den, 1e-6), 0.0)
-    cover_rb = np.clip(1.0 - rb / np.maximum(rb_bg, 1e-6), 0.0, 1.0)
-    # where the background has little red+blue (a black link), use greenness against the interior's
-    k5 = np.ones((5, 5), np.float32)
-    num = cv2.filter2D(np.where(interior, gl, 0.0).astype(np.float32), -1, k5, borderType=cv2.BORDER_CONSTANT)
-    den = cv2.filter2D(interior.astype(np.float32), -1, k5, borderType=cv2.BORDER_CONSTANT)
-    g_in = np.where(den > 0, num / np.maximum(den, 1e-6), 0.0)
-    peak = float(np.percentile(gl[solid.astype(bool)], 90))
-    g_in = np.where(g_in > 0, g_in, peak)
-    cover_g = np.clip(gl / g_in, 0.0, 1.0)
-    cover = np.where(rb_bg >= 40.0, cover_rb, cover_g)
+    cover = _rim_coverage(np.asarray(image_bgr)[y0:y1, x0:x1].astype(np.float32), solid, interior)
     wgt = np.where(interior, 1.0, np.where(rim, cover, 0.0)).astype(np.float64)
     total = float(wgt.sum())
     if total <= 0:
@@ -131,3 +114,38 @@ def detect_marker(
         return MarkerDetection(False, uv=np.array([u, v]), radius_px=radius, fill=fill,
                                reason=f"blob fills {fill:.2f} of its disc: partly hidden?")
     return MarkerDetection(True, uv=np.array([u, v]), radius_px=radius, fill=fill)
+
+
+def _local_mean(values: np.ndarray, where: np.ndarray, size: int) -> np.ndarray:
+    """Mean of ``values`` over the ``where`` pixels in a size×size window (0 where there are none)."""
+    k = np.ones((size, size), np.float32)
+    num = cv2.filter2D(np.where(where, values, 0.0).astype(np.float32), -1, k, borderType=cv2.BORDER_CONSTANT)
+    den = cv2.filter2D(where.astype(np.float32), -1, k, borderType=cv2.BORDER_CONSTANT)
+    return np.where(den > 0, num / np.maximum(den, 1e-6), 0.0)
+
+
+def _rim_coverage(img: np.ndarray, solid: np.ndarray, interior: np.ndarray) -> np.ndarray:
+    """Fraction of each pixel covered by the marker: the mean of two local unmixing estimates.
+
+    A rim pixel's colour is ``a·M + (1 − a)·B``, with ``B`` the background just outside (mean of
+    the pixels 2–3 px beyond the blob, 7×7 window) and ``M`` the marker's colour there.
+
+    * red+blue: a green material reflects red and blue only through its white specular part
+      ``s`` (estimated as min(R, B) of the interior nearby), so ``a = (rb_B − rb) / (rb_B − 2s)``
+      whatever the diffuse shading (needs a background with some red and blue);
+    * colour: ``M`` = the interior's mean colour nearby (5×5), ``a`` = the least-squares
+      coefficient of ``pixel − B`` along ``M − B`` (any background; biased where the shading
+      changes fast across the rim).
+    """
+    kernel = np.ones((3, 3), np.uint8)
+    outer = cv2.dilate(solid, np.ones((7, 7), np.uint8)).astype(bool) & ~cv2.dilate(solid, kernel).astype(bool)
+    B = np.stack([_local_mean(img[..., c], outer, 7) for c in range(3)], -1)
+    M = np.stack([_local_mean(img[..., c], interior, 5) for c in range(3)], -1)
+    d = M - B
+    a_colour = np.clip(np.sum((img - B) * d, -1) / np.maximum(np.sum(d * d, -1), 1e-6), 0.0, 1.0)
+    rb = img[..., 0] + img[..., 2]
+    rb_bg = B[..., 0] + B[..., 2]
+    spec = _local_mean(np.minimum(img[..., 0], img[..., 2]), interior, 5)
+    den = rb_bg - 2.0 * spec
+    a_rb = np.clip((rb_bg - rb) / np.maximum(den, 1e-6), 0.0, 1.0)
+    return 0.5 * (a_colour + np.where(den >= 40.0, a_rb, a_colour))

@@ -124,11 +124,14 @@ def measure(targets_robot, rig, *, move_to: Callable[[np.ndarray], np.ndarray | 
     return Observations(targets, p_robot, uv_l, uv_r, p_cam, reasons)
 
 
-def refine_reprojection(T_robot_cam, p_robot, uv_left, uv_right, rig) -> np.ndarray:
+def refine_reprojection(T_robot_cam, p_robot, uv_left, uv_right, rig, *, loss: str = "linear",
+                        f_scale_px: float = 0.5) -> np.ndarray:
     """``T_robot_cam`` minimising the marker's reprojection error in both images (pixels).
 
     Starts from ``T_robot_cam`` (e.g. the closed form) and optimises its 6 parameters with
-    Levenberg–Marquardt on ``π(T_cam_robot · p_robot) − uv`` in the left and right images.
+    Levenberg–Marquardt on ``π(T_cam_robot · p_robot) − uv`` in the left and right images;
+    with ``loss`` (a SciPy robust loss such as ``"soft_l1"``, scale ``f_scale_px``) a
+    trust-region solver that lets a few poor detections count less.
     """
     T0 = invert(np.asarray(T_robot_cam, dtype=np.float64))  # T_cam_robot
     p_robot = np.asarray(p_robot, dtype=np.float64)
@@ -139,7 +142,11 @@ def refine_reprojection(T_robot_cam, p_robot, uv_left, uv_right, rig) -> np.ndar
         p_cam = p_robot @ rotvec_to_matrix(x[:3]).T + x[3:]
         return (np.hstack(rig.project(p_cam)) - target).ravel()
 
-    sol = least_squares(resid, x0, method="lm", x_scale=np.r_[np.full(3, 0.01), np.full(3, 0.001)])
+    if loss == "linear":
+        sol = least_squares(resid, x0, method="lm", x_scale=np.r_[np.full(3, 0.01), np.full(3, 0.001)])
+    else:
+        sol = least_squares(resid, x0, method="trf", loss=loss, f_scale=f_scale_px,
+                            x_scale=np.r_[np.full(3, 0.01), np.full(3, 0.001)])
     if not np.all(np.isfinite(sol.x)):
         raise CalibrationError("reprojection refinement diverged")
     return invert(from_rt(rotvec_to_matrix(sol.x[:3]), sol.x[3:]))
@@ -149,7 +156,8 @@ def solve(obs: Observations, rig=None, *, robust: bool = False, refine: bool = F
     """``T_robot_cam`` from the observations: absolute orientation (src = camera, dst = robot).
 
     ``robust``: least-median-of-squares with inlier refit (drops wrong detections).
-    ``refine``: then minimise the reprojection error in both images (needs ``rig``).
+    ``refine``: then minimise the reprojection error in both images (needs ``rig``; soft-L1
+    loss with a 0.3 px scale, so a marker detection spoiled by partial occlusion counts less).
     Returns a falsy :class:`RigidTransform` with ``reason`` when the poses are degenerate.
     """
     ok = obs.ok
@@ -163,7 +171,8 @@ def solve(obs: Observations, rig=None, *, robust: bool = False, refine: bool = F
     if rig is None:
         raise CalibrationError("reprojection refinement needs the rig")
     keep = fit.inliers if fit.inliers is not None else np.ones(len(p_cam), bool)
-    T = refine_reprojection(fit.T, p_robot[keep], obs.uv_left[ok][keep], obs.uv_right[ok][keep], rig)
+    T = refine_reprojection(fit.T, p_robot[keep], obs.uv_left[ok][keep], obs.uv_right[ok][keep], rig,
+                            loss="soft_l1", f_scale_px=0.3)
     return RigidTransform(R=T[:3, :3], t=T[:3, 3], p_src=p_cam, p_dst=p_robot, inliers=keep)
 
 
