@@ -68,3 +68,35 @@ def test_holds_position_before_any_target_and_callback_force():
         servo.tick(i * 1e-3)
     # a constant 0.5 N push against Kp moves it 0.5 / Kp up
     assert plant.read().p_robot[2] - p0[2] == pytest.approx(0.5 / Gains().kp, rel=0.05)
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+garbage = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([1e308, -1e308, 0.0]))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    targets=st.lists(st.lists(garbage, min_size=3, max_size=3), min_size=1, max_size=6),
+    forces=st.lists(st.lists(garbage, min_size=3, max_size=3), min_size=1, max_size=6),
+    policy=st.sampled_from(["hold", "interpolate", "extrapolate"]),
+)
+def test_servo_never_writes_nan_or_over_limit(targets, forces, policy):
+    """Whatever X_d and extra force arrive, every torque written to the device is finite and bounded."""
+    plant = MujocoPlant(passive_object=PassiveObject())
+    written = []
+    write = plant.command_torque_scalar
+
+    def spy(a, b, c):
+        written.append((a, b, c))
+        write(a, b, c)
+
+    plant.command_torque_scalar = spy
+    servo = ServoLoop(plant, Controller(plant.params, Gains(ramp_s=0.0), limits=plant.limits), policy=policy)
+    lim = plant.limits.max_torque_nm
+    for i in range(24):
+        servo.tick(i * 1e-3, targets[i % len(targets)], forces[i % len(forces)])
+        assert np.linalg.norm(servo.controller.F_cmd) <= plant.limits.peak_force_n * (1 + 1e-12)
+    assert len(written) == 24
+    assert np.all(np.isfinite(written)) and np.max(np.abs(written)) <= lim
+    assert np.all(np.isfinite(plant.read().q))
