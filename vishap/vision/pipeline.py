@@ -40,6 +40,7 @@ class PipelineConfig:
     max_candidates: int = 4         # fingertip candidates per view in a full-frame search
     learn_frames: int = 10
     recheck_frames: int = 15        # while tracking, search the full frame every this many frames (0: never)
+    full_search_on_miss: bool = True  # a miss in the window triggers a full-frame search of that view
     recheck_jump_px: float = 12.0   # a recheck result this far from the track restarts the track there
     tracking: bool = True           # False: always search the full frame
 
@@ -212,6 +213,13 @@ class VisionPipeline:
                         tips.append(tip)
             tips.sort(key=lambda tp: -tp.extremity_px)
             tips = tips[:n_max]
+        if not tips and mode == "tracked" and cfg.full_search_on_miss:
+            # the finger left the window (fast motion): search this view's full frame now
+            full = snap_roi((0, 0, self._size[0], self._size[1]), seg.config.tile, self._size)
+            m_full = seg.segment(image, full)
+            tips = detect_fingertips(m_full, self.K / z, cfg.fingertip, max_tips=cfg.max_candidates)
+            if tips:
+                roi, mode = full, "recheck"
         te = time.perf_counter()
         timings[f"segment_{side}_ms"] = (td - ts) * 1e3
         timings[f"detect_{side}_ms"] = (te - td) * 1e3

@@ -37,11 +37,13 @@ class ToyScene:
     """Draw frames with the fingertip cap centre at ``tip_cam`` (left camera frame, metres)."""
 
     def __init__(self, rig: StereoRig, *, seed: int = 0, finger_radius_m: float = 0.008,
-                 skinlike_table: bool = False, noise: float = 2.0, ss: int = 4):
+                 skinlike_table: bool = False, noise: float = 2.0, ss: int = 4, table_bgr=None):
         self.rig, self.R, self.noise, self.ss = rig, finger_radius_m, noise, ss
         self.rng = np.random.default_rng(seed)
         w, h = rig.image_size
-        base = np.array(SKINLIKE_TABLE_BGR if skinlike_table else TABLE_BGR, np.float32)
+        if table_bgr is None:
+            table_bgr = SKINLIKE_TABLE_BGR if skinlike_table else TABLE_BGR
+        base = np.array(table_bgr, np.float32)
         tex = self.rng.normal(0, 6, (h // 8 + 1, w // 8 + 1, 3)).astype(np.float32)
         tex = cv2.resize(tex, (w, h), interpolation=cv2.INTER_LINEAR)
         self.table = {s: np.clip(base + tex, 0, 255) for s in ("left", "right")}
