@@ -30,8 +30,9 @@ POLICIES = [
     ("cv", "hold", "ray"),
     ("kalman", "blend", "ray"),
     ("kalman", "hold", "ray"),
-    ("kalman", "blend", "path"),
     ("kalman", "hold", "path"),
+    ("kalman", "blend", "both"),
+    ("kalman", "hold", "both"),
 ]
 
 
@@ -248,7 +249,7 @@ def run(args) -> dict:
     record["settings"] = {
         "vision": {"rate_hz": vision.rate_hz, "latency_s": vision.latency_s, "noise_m": vision.noise_m, "dropout": vision.dropout},
         "in_place_mm": args.in_place_mm, "speeds_m_s": [0.1, 0.2, 0.3, 0.4, 0.5], "bow_fraction": args.bow,
-        "predictor": "kalman", "handover": "hold", "contact_model": "path", "seed": args.seed,
+        "predictor": "kalman", "handover": "hold", "contact_model": "both", "seed": args.seed,
     }
     record["charts"] = charts
     record["wall_time_s"] = time.perf_counter() - t_start

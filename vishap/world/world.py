@@ -70,7 +70,7 @@ class World:
     ``hysteresis_m``, ``hold_m``, ``horizon_s`` (furthest look-ahead), ``contact_margin_m``,
     ``path_margin_m`` and ``clearance_m`` for routing, ``max_force_n`` for the laws, ``contact_model``
     (``ray``: the predicted straight-line motion meets the surface; ``path``: the recent path is
-    extrapolated in height), ``engage_m`` (depth beyond which the mode's lateral contact gain applies).
+    extrapolated in height; ``both``: the two fused by their variances), ``engage_m`` (depth beyond which the mode's lateral contact gain applies).
     """
 
     def __init__(
@@ -88,11 +88,11 @@ class World:
         path_margin_m: float = 0.003,
         clearance_m: float = 0.01,
         max_force_n: float = DEFAULT_MAX_FORCE_N,
-        contact_model: str = "path",
+        contact_model: str = "both",
         engage_m: float = 0.0003,
     ):
-        if contact_model not in ("ray", "path"):
-            raise ValueError(f"contact_model must be 'ray' or 'path', got {contact_model!r}")
+        if contact_model not in ("ray", "path", "both"):
+            raise ValueError(f"contact_model must be 'ray', 'path' or 'both', got {contact_model!r}")
         self.contact_model = contact_model
         self.engage_m = float(engage_m)
         self.heading_confirm = 1  # updates in a row the finger must head for an object to switch to it
@@ -143,14 +143,17 @@ class World:
         imminent = distances[subj.name] < self.imminent_m
         c, tau = contact_point(p, v, subj.normal, subj.offset, horizon_s=self.horizon_s)
         c = subj.project(c)
-        fit = self.path.contact(subj.centre, subj.R) if self.contact_model == "path" and tau is not None else None
+        fit = self.path.contact(subj.centre, subj.R) if self.contact_model != "ray" and tau is not None else None
+        use_ray = self.contact_model != "path" or fit is None
         if tau is None:
             self.meeting.reset()
-        elif fit is not None:  # the path's own extrapolation, fused by its variance
-            c = subj.project(self.meeting.update(fit[0], 0.0, fit[1], 0.0))
-        elif hasattr(self.predictor, "cov_at"):  # fuse successive predictions by their uncertainty
-            P = self.predictor.cov_at(t + self.latency_s)
-            c = subj.project(self.meeting.update(c, tau, np.trace(P[:3, :3]) / 3, np.trace(P[3:, 3:]) / 3))
+        else:
+            if use_ray and hasattr(self.predictor, "cov_at"):  # fuse successive predictions by their uncertainty
+                P = self.predictor.cov_at(t + self.latency_s)
+                c = self.meeting.update(c, tau, np.trace(P[:3, :3]) / 3, np.trace(P[3:, 3:]) / 3)
+            if fit is not None:  # the path's own extrapolation, fused by its variance
+                c = self.meeting.update(fit[0], 0.0, fit[1], 0.0)
+            c = subj.project(c)
         X = self._target(subj, p, c, h, in_contact)
         via = False
         start = p_robot_device if p_robot_device is not None else self.X_d
