@@ -59,7 +59,7 @@ class Demo:
         self.target = {"X_d": np.full(3, np.nan), "made_at": -math.inf, "confidence": 0.0, "calibrated": st.T_est is not None}
         self.armed = False          # the guard starts once the first finger estimate (or a calibration fault) arrives
         self.inter = None           # the world's newest Interaction
-        self.contact_lambda = False
+        self.lam_state = None       # object gain Λ currently set in the controller (None: identity)
         self.last_key = None
         self.last_action = "idle"
         self.retreat_key = None
@@ -204,21 +204,15 @@ class Demo:
         pad, v_pad, _ = self._finger(t)
         F_on_dev = st.pad_force(pad, v_pad, p_dev, dev.v_robot)
         st.plant.apply_tip_force(F_on_dev)
-        # the subject's law renders contact while the device is pushed under its surface (Eq. 8-9)
-        world, ctrl, inter = st.world, st.controller, self.inter
-        F_law = None
-        law = world.law
-        if (law is not None and action in ("track", "hold") and inter is not None
-                and (inter.imminent or inter.in_contact) and law.depth(p_dev) > 0.0):
-            F_law = world.force_robot(p_dev, dev.v_robot)
-            if not self.contact_lambda:
-                if hasattr(world, "contact_gain"):
-                    ctrl.set_lambda(*world.contact_gain())
-                self.contact_lambda = True
-        elif self.contact_lambda:
-            ctrl.set_lambda(None)
-            self.contact_lambda = False
-            law.reset()
+        # the subject's law renders contact while the device is pushed under its surface (Eq. 8-9);
+        # a retreating device renders nothing
+        world, ctrl = st.world, st.controller
+        F_law, lam, R = world.contact_render(p_dev, dev.v_robot, self.inter if action in ("track", "hold") else None)
+        if lam != self.lam_state:
+            ctrl.set_lambda(lam, None if lam is None else R)
+            if lam is None and world.law is not None:
+                world.law.reset()
+            self.lam_state = lam
         if action == "track":
             key = tg["made_at"]
         elif action == "retreat":

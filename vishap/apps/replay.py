@@ -105,6 +105,7 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
     scene_rows = len(s.get("t", []))
     j = 0
     inter = None
+    lam_state = None
     armed = False
     F_law_new = np.zeros_like(sv["F_law"])
     events = sorted([(float(s["t"][i]), 0, i) for i in range(scene_rows)] +
@@ -131,10 +132,14 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
                                         imminent=bool(it is not None and it.imminent),
                                         in_contact=bool(it is not None and it.in_contact))
         else:
-            if sv["law_active"][i]:
-                F_law_new[i] = world.force_robot(sv["device_point"][i], sv["v_device"][i])
-            elif i > 0 and sv["law_active"][i - 1] and world.law is not None:
-                world.law.reset()
+            F, lam, _ = world.contact_render(sv["device_point"][i], sv["v_device"][i],
+                                             inter if sv["guard"][i] in (0, 1) else None)
+            if F is not None:
+                F_law_new[i] = F
+            if lam != lam_state:
+                if lam is None and world.law is not None:
+                    world.law.reset()
+                lam_state = lam
     if scene_rows:
         ns = new.channel("scene").arrays()
         report["world"] = compare(s, ns, ["finger_robot", "X_d", "depth", "imminent", "in_contact"], atol)
