@@ -40,6 +40,16 @@ class ChannelTargets:
     sleeve_gain: float            # texture gain of the sleeve (regions and pins) in this state
 
 
+_HIGHS: dict[int, np.ndarray] = {}
+
+
+def _band_highs(cfg: TactileConfig) -> np.ndarray:
+    key = id(cfg.bands)
+    if key not in _HIGHS:
+        _HIGHS[key] = np.array([b.high_hz for b in cfg.bands])
+    return _HIGHS[key]
+
+
 def allocate(state: ContactState, force_n: float, band_amp: np.ndarray, band_hz: np.ndarray, regions: RegionSet,
              x_cm: float | tuple[float, float], roughness: float, cfg: TactileConfig, *,
              time_in_state_s: float = np.inf) -> ChannelTargets:
@@ -60,7 +70,7 @@ def allocate(state: ContactState, force_n: float, band_amp: np.ndarray, band_hz:
         w = decay if cfg.control.spatial_kernel == "decay" else 1.0 - decay
     else:
         w = spatial_weight(x_cm, regions, cfg.control.spatial_kernel)
-    highs = np.array([b.high_hz for b in cfg.bands])
+    highs = _band_highs(cfg)
     level = np.asarray(band_amp)[np.minimum(np.searchsorted(highs, regions.beta_hz), len(highs) - 1)]
     level = np.minimum(level + al.static_texture_gain * roughness, 1.0)
     amp = regions.alpha * regions.gamma * w * level

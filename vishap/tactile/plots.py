@@ -57,7 +57,9 @@ def plot_spectrogram(path, fs, signal_1d, tick_t=None, speed=None, title="sleeve
     f, tt, S = sps.spectrogram(signal_1d, fs=fs, nperseg=nper, noverlap=nper * 3 // 4)
     keep = f <= 450
     fig, ax = new_figure(figsize=(9, 4))
-    ax.pcolormesh(tt, f[keep], 10 * np.log10(S[keep] + 1e-12), shading="auto", cmap="magma")
+    db = 10 * np.log10(S[keep] + 1e-12)
+    mesh = ax.pcolormesh(tt, f[keep], db, shading="auto", cmap="magma", vmin=db.max() - 35, vmax=db.max())
+    ax.figure.colorbar(mesh, ax=ax, pad=0.12, label="dB")
     for fb in (20, 200, 400):
         ax.axhline(fb, color="w", lw=0.6, ls="--")
     if speed is not None and tick_t is not None:

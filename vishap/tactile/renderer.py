@@ -126,8 +126,8 @@ class TactileRenderer:
         self.pin_prev = np.zeros((2, self.pins.n_pins))
         self.features = None
         self._phsm_key = None
-        self._t_hist: deque[float] = deque()
-        self._x_hist: deque[float] = deque()
+        self._lo: deque[tuple[float, float]] = deque()  # monotonic queues: sliding min / max of x
+        self._hi: deque[tuple[float, float]] = deque()
         self.prearmed = False
         self.trace: list[dict] | None = None
 
@@ -187,16 +187,8 @@ class TactileRenderer:
             self._phsm = ([b.amplitude for b in tg], [b.frequency_hz for b in tg])
         self.jnd.update(*self._phsm)
         x_cm = 100.0 * (feats.centroid_m[0] if feats.in_contact else centre[0])
-        ht, hx = self._t_hist, self._x_hist
-        if not feats.in_contact:
-            ht.clear()
-            hx.clear()
-        ht.append(t)
-        hx.append(x_cm)
-        while ht[0] < t - self.REGION_MEMORY_S:
-            ht.popleft()
-            hx.popleft()
-        alloc = allocate(eff, force, self.jnd.amplitude, self.jnd.frequency, regions, (min(hx), max(hx)),
+        span = self._span_update(t, x_cm, feats.in_contact)
+        alloc = allocate(eff, force, self.jnd.amplitude, self.jnd.frequency, regions, span,
                          self.surface.roughness, cfg, time_in_state_s=t - self.state_since)
 
         # continuity limits (§2.4): every amplitude is slew-limited
@@ -236,6 +228,25 @@ class TactileRenderer:
                                    glove_hz=alloc.glove_osc_hz, jnd_sent=self.jnd.sent))
         return block
 
+    def _span_update(self, t: float, x: float, in_contact: bool) -> tuple[float, float]:
+        """[min, max] of the centroid x over the last ``REGION_MEMORY_S`` (amortised O(1))."""
+        lo, hi = self._lo, self._hi
+        if not in_contact:
+            lo.clear()
+            hi.clear()
+        while lo and lo[-1][1] >= x:
+            lo.pop()
+        lo.append((t, x))
+        while hi and hi[-1][1] <= x:
+            hi.pop()
+        hi.append((t, x))
+        old = t - self.REGION_MEMORY_S
+        while lo[0][0] < old:
+            lo.popleft()
+        while hi[0][0] < old:
+            hi.popleft()
+        return lo[0][1], hi[0][1]
+
     def _pin_now(self, t: float) -> np.ndarray:
         if not np.isfinite(self.pin_t):
             return self.pin_to.copy()
@@ -257,11 +268,12 @@ class TactileRenderer:
         support = self._glove_prev + (self.glove_support - self._glove_prev) * r
         self._glove_prev = self.glove_support
         glove = support + y[5]
-        out = []
-        for x in (glove, reg, pins):
-            if not np.isfinite(x).all():  # never hand NaN/inf to a device
-                x = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
-            out.append(np.clip(x, -1.0, 1.0))
+        out = (glove, reg, pins)
+        if not math.isfinite(float(glove.sum()) + float(reg.sum()) + float(pins.sum())):  # never NaN/inf to a device
+            out = tuple(np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0) for x in out)
+        for x in out:
+            np.minimum(x, 1.0, out=x)
+            np.maximum(x, -1.0, out=x)
         return DriveBlock(t0, self.fs, *out)
 
     # ------------------------------------------------------------------------------------------

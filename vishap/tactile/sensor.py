@@ -13,6 +13,7 @@ durations of local pressure pulses (how long each element stays engaged).
 """
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -149,20 +150,28 @@ class FeatureTracker:
 
     def reset(self) -> None:
         n = self.array.cfg.rows * self.array.cfg.cols
+        self._xr = np.ascontiguousarray(self.array.x_m.ravel())
+        self._yr = np.ascontiguousarray(self.array.y_m.ravel())
         self._engaged = np.zeros(n, dtype=bool)
         self._onset = np.zeros(n)
         self._pulses: deque[tuple[float, float]] = deque()  # (end time, duration)
-        # sliding windows with running sums (constant cost per frame)
+        # sliding windows with running sums in plain floats (constant cost per frame)
         self._cent: deque[tuple[float, float, float]] = deque()
-        self._cs = np.zeros(6)  # Στ, Στ², Σx, Σy, Στx, Στy  with τ = t − t_ref
+        self._cs = [0.0] * 6  # Στ, Στ², Σx, Σy, Στx, Στy  with τ = t − t_ref
         self._t_ref = 0.0
         self._force: deque[tuple[float, float]] = deque()
-        self._fs = np.zeros(2)  # Σf, Σf²
+        self._fs = [0.0, 0.0]  # Σf, Σf²
         self._broad_since: float | None = None
 
-    def _cent_row(self, t: float, x: float, y: float) -> np.ndarray:
+    def _add_cent(self, t: float, x: float, y: float, sign: float) -> None:
         tau = t - self._t_ref
-        return np.array([tau, tau * tau, x, y, tau * x, tau * y])
+        c = self._cs
+        c[0] += sign * tau
+        c[1] += sign * tau * tau
+        c[2] += sign * x
+        c[3] += sign * y
+        c[4] += sign * tau * x
+        c[5] += sign * tau * y
 
     def update(self, frame: SensorFrame) -> ContactFeatures:
         """Add one frame and return the features of the contact it shows."""
@@ -176,8 +185,8 @@ class FeatureTracker:
             started = changed & now
             ended = changed & was
             self._onset[started] = t
-            for d in (t - self._onset[ended]):
-                self._pulses.append((t, float(d)))
+            for d in (t - self._onset[ended]).tolist():
+                self._pulses.append((t, d))
         self._engaged = now
         while self._pulses and self._pulses[0][0] < t - self.pulse_memory:
             self._pulses.popleft()
@@ -185,44 +194,46 @@ class FeatureTracker:
         pe = p[now]
         engaged = int(pe.size)
         # total force: every element above the noise floor (edge elements carry force too)
-        total_force = float(p[p > self.floor_pa].sum() * ea) if engaged else 0.0
+        total_force = float(p[p > self.floor_pa].sum()) * ea if engaged else 0.0
         in_contact = engaged > 0 and total_force >= self.min_force
         if in_contact:
-            w = pe.sum()
-            cx = float(np.dot(pe, self.array.x_m.ravel()[now]) / w)
-            cy = float(np.dot(pe, self.array.y_m.ravel()[now]) / w)
+            w = float(pe.sum())
+            cx = float(pe @ self._xr[now]) / w
+            cy = float(pe @ self._yr[now]) / w
             centroid = np.array([cx, cy])
             if not self._cent:
                 self._t_ref = t
             self._cent.append((t, cx, cy))
-            self._cs += self._cent_row(t, cx, cy)
+            self._add_cent(t, cx, cy, 1.0)
             self._force.append((t, total_force))
-            self._fs += (total_force, total_force * total_force)
+            self._fs[0] += total_force
+            self._fs[1] += total_force * total_force
         else:
-            centroid = np.full(2, np.nan)
+            centroid = np.array([np.nan, np.nan])
             self._cent.clear()
-            self._cs[:] = 0.0
+            self._cs = [0.0] * 6
             self._force.clear()
-            self._fs[:] = 0.0
+            self._fs = [0.0, 0.0]
         while self._cent and self._cent[0][0] < t - self.vw:
-            self._cs -= self._cent_row(*self._cent.popleft())
+            self._add_cent(*self._cent.popleft(), -1.0)
         while self._force and self._force[0][0] < t - self.sw:
             f0 = self._force.popleft()[1]
-            self._fs -= (f0, f0 * f0)
+            self._fs[0] -= f0
+            self._fs[1] -= f0 * f0
 
-        vel = np.zeros(2)
+        vx = vy = 0.0
         n = len(self._cent)
         if n >= 3:
             st, stt, sx, sy, stx, sty = self._cs
             den = stt - st * st / n
             if den > 1e-12:
-                vel = np.array([(stx - st * sx / n) / den, (sty - st * sy / n) / den])
+                vx, vy = (stx - st * sx / n) / den, (sty - st * sy / n) / den
         fcv = 0.0
         nf = len(self._force)
         if nf >= 2:
             mean = self._fs[0] / nf
             var = max(self._fs[1] / nf - mean * mean, 0.0)
-            fcv = float(np.sqrt(var) / max(mean, 1e-9))
+            fcv = math.sqrt(var) / max(mean, 1e-9)
 
         area = engaged * ea
         if in_contact and area >= self.broad_area:
@@ -236,9 +247,10 @@ class FeatureTracker:
         ongoing = t - self._onset[now]
         if self._pulses:
             ongoing = np.concatenate([ongoing, np.fromiter((d for _, d in self._pulses), float, len(self._pulses))])
-        pulse = float(np.partition(ongoing, ongoing.size // 2)[ongoing.size // 2]) if ongoing.size else 0.0  # (upper) median
+        k = ongoing.size // 2
+        pulse = float(np.partition(ongoing, k)[k]) if ongoing.size else 0.0  # (upper) median
         return ContactFeatures(
             t=t, in_contact=in_contact, total_force_n=total_force, area_m2=area, engaged=engaged,
-            centroid_m=centroid, peak_pa=float(p.max()) if p.size else 0.0, centroid_velocity_m_s=vel,
+            centroid_m=centroid, peak_pa=float(p.max()), centroid_velocity_m_s=np.array([vx, vy]),
             pulse_s=pulse, force_cv=fcv, broad_for_s=broad_for,
         )
