@@ -52,10 +52,12 @@ class SimCalibration:
     and its forearm 7 mm thick, both around the 5 mm marker, which would hide it; the marker is
     therefore mounted on a stylus: the drawn arm ends ``stand_off_m`` before the end-effector,
     the marker stays centred exactly at the end-effector (``ee_robot`` = forward kinematics).
+    ``encoder_resolution_rad``: the joint angles paired with the images are quantised like the
+    simulated plant's encoders (:class:`vishap.robot.plant.MujocoPlant`, 1.5e-4 rad); 0 = exact.
     """
 
     def __init__(self, *, rig: StereoRig | None = None, size=None, scene: str = "wall", seed: int = 0,
-                 msaa: int = 4, stand_off_m: float = 0.022):
+                 msaa: int = 4, stand_off_m: float = 0.022, encoder_resolution_rad: float = 1.5e-4):
         from vishap.robot import kinematics
         from vishap.robot.params import DEFAULT
         from vishap.sim.camera_placement import default_T_robot_cam
@@ -71,6 +73,7 @@ class SimCalibration:
         self.box = np.column_stack([DEFAULT.workspace_min, DEFAULT.workspace_max])
         self.renderer = StereoRenderer(rig, self.T_true, scene, seed=seed, msaa=msaa)
         self.stand_off_m = float(stand_off_m)
+        self.encoder_resolution_rad = float(encoder_resolution_rad)
 
     # the arm ------------------------------------------------------------------------------
     def reachable(self, p_robot) -> bool:
@@ -85,12 +88,16 @@ class SimCalibration:
     def _move_to(self, target):
         if not self.reachable(target):
             return None
-        self._q = self.kin.ik(target)
-        return self.kin.fk(self._q)  # the encoders' joint angles through forward kinematics
+        self._q = self.kin.ik(target)  # where the arm is
+        q_read = self._q
+        if self.encoder_resolution_rad > 0:  # what its encoders report
+            q_read = np.round(self._q / self.encoder_resolution_rad) * self.encoder_resolution_rad
+        return self.kin.fk(q_read)
 
     def _grab(self, p_robot, target):
         from vishap.sim.state import FrameState
 
+        p_robot = self.kin.fk(self._q)  # the marker is where the arm really is
         self._t += _POSE_DWELL_S
         pts = self.kin.link_points(self._q)
         if self.stand_off_m > 0:  # the marker on a short stylus beyond the drawn end joint
@@ -129,7 +136,8 @@ class SimCalibration:
             out["observations"]["reasons"] = list(obs.reasons)
             # marker detection error against the true projection of the end-effector
             ok = obs.ok
-            p_cam = (obs.p_robot[ok] - self.T_true[:3, 3]) @ self.T_true[:3, :3]
+            p_true = np.array([self.kin.fk(self.kin.ik(t)) for t in obs.targets_robot[ok]]).reshape(-1, 3)
+            p_cam = (p_true - self.T_true[:3, 3]) @ self.T_true[:3, :3]
             uv_l, uv_r = self.rig.project(p_cam)
             err = np.concatenate([np.linalg.norm(uv_l - obs.uv_left[ok], axis=1),
                                   np.linalg.norm(uv_r - obs.uv_right[ok], axis=1)])
