@@ -42,3 +42,16 @@ def test_malformed_file_is_refused(tmp_path):
     bad.write_text(GAINS_FILE.read_text().replace("    - [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]\n", "", 1))
     with pytest.raises(ConfigError, match="stable"):
         load_gains(bad)
+
+
+def test_build_servo_uses_the_file_and_refuses_unstable_gains():
+    from vishap.robot import PassiveObject, build_servo
+
+    servo = build_servo(PassiveObject(), policy="extrapolate")
+    _, cfg = load_gains()
+    assert servo.controller.gains == Gains()
+    assert servo.device.limits.max_stiffness_n_m == cfg.max_stiffness_n_m
+    L = servo.controller.set_lambda([1.0, 1.0, 1000.0])  # λ·Kp far beyond the stable walls: clipped
+    assert servo.controller.lambda_clipped and L.max() * servo.controller.gains.kp <= cfg.max_stiffness_n_m + 1e-9
+    with pytest.raises(ConfigError, match="stable region"):
+        build_servo(gains=Gains(kp=12800.0, kv=16.0))

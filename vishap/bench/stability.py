@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vishap.bench._common import machine_info, new_figure, save_figure
+from vishap.bench._common import machine_info, new_figure
 
 HELP = "stability map of the servo loop (gains, filter, X_d rate, delay, wall stiffness) with the passivity bound"
 
@@ -130,10 +130,6 @@ def _colgate(ax, b: float, T: float, K_range) -> None:
         if m.any():
             ax.plot(K[m], B[m], "k" + style, lw=1.2 if style == "-" else 0.8, alpha=0.8)
             ax.annotate(f"b={bb:.3g}", (K[m][0], B[m][0]), fontsize=7, xytext=(2, 2), textcoords="offset points")
-    ax.text(
-        0.02, 0.02, f"arm's own b={b:.3g} N·s/m: passive only for K < {2 * b / T:.0f} N/m, |B| < b (off chart)",
-        transform=ax.transAxes, fontsize=6.5, va="bottom",
-    )
 
 
 def _scatter(ax, recs, x, y, title, xlog=True, ylog=False):
@@ -190,12 +186,30 @@ def chart(recs: list[dict], out: Path, substeps: int, b_tip: float, T: float) ->
     ax.set_xlabel("added delay (ms; 0 drawn at 0.5)")
     ax.set_ylabel("kp")
     ax.set_title("added delay × Kp (Kv ∝ √Kp)", fontsize=9)
-    for k, c in COLORS.items():
-        axes[0].scatter([], [], c=c, marker="s", label=k)
-    axes[0].plot([], [], "k-", label=f"Colgate b > KT/2+|B|, arm b={b_tip:.3g} N·s/m")
-    axes[0].plot([], [], "k--", label="same bound for larger b")
-    axes[0].legend(fontsize=7, loc="upper left")
-    return save_figure(fig, out / "stability.png")
+    from vishap.robot.controller import Gains
+
+    g = Gains()
+    if len(sensors) < 2:
+        axes[1].set_visible(False)
+    for ax in axes[: min(2, len(sensors))]:
+        ax.scatter([g.kp], [g.kv], marker="*", s=180, facecolors="none", edgecolors="k", linewidths=1.2)
+    handles = [axes[0].scatter([], [], c=c, marker="s", label=k) for k, c in COLORS.items()]
+    handles += axes[0].plot([], [], "k--", lw=0.8, label="Colgate–Schenkel bound b = KT/2 + |B| for the b shown")
+    handles.append(axes[0].scatter([], [], marker="*", s=120, facecolors="none", edgecolors="k", label="default gains"))
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
+    fig.suptitle(
+        f"Servo stability in MuJoCo (T = {T * 1e3:g} ms). The arm's own damping b = {b_tip:.3g} N·s/m makes the "
+        f"sampled wall passive only for K < {2 * b_tip / T:.0f} N/m and |B| < b (off these charts).",
+        fontsize=10,
+    )
+    fig.tight_layout(rect=(0, 0.04, 1, 0.96))  # room for the legend and title (save_figure would undo it)
+    import matplotlib.pyplot as plt
+
+    path = out / "stability.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 def run(args) -> dict:

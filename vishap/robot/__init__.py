@@ -3,8 +3,10 @@
 Modules: :mod:`params` (constants, one source of truth), :mod:`kinematics` (fk, Jacobian, ik,
 Eq. 6), :mod:`gravity` (Eq. 7), :mod:`mjcf` (MuJoCo model from the params), :mod:`device` (the
 Device interface and limits), :mod:`plant` (MuJoCo plant), :mod:`controller` (Eq. 4–5, 8–9),
-:mod:`servo` (the 1 kHz cycle and X_d gap policies), :mod:`gains` (stable-region gain loader).
+:mod:`servo` (the 1 kHz cycle and X_d gap policies), :mod:`gains` (stable-region gain loader),
+:mod:`build` (:func:`build_servo`: plant + controller with the checked gains).
 """
+from vishap.robot.build import build_servo
 from vishap.robot.controller import Controller, Gains
 from vishap.robot.device import Device, DeviceLimits, DeviceState
 from vishap.robot.mjcf import PassiveObject
@@ -25,4 +27,5 @@ __all__ = [
     "ServoLoop",
     "TargetShaper",
     "POLICIES",
+    "build_servo",
 ]
