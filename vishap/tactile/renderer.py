@@ -96,6 +96,9 @@ class TactileRenderer:
             umap = nonuniformity_map(cfg.pins, rng)
         self.pins = PinRenderer(cfg.pins, tile, umap=umap)
         self.heading_rad = heading_rad
+        env = phsm_targets(self.surface, 0.0, 0.0, cfg.bands)[1]  # attack/release depend on the surface only
+        self.rise_per_s = min(cfg.control.amplitude_slew_per_s, 1.0 / env.attack_s)
+        self.fall_per_s = min(cfg.control.amplitude_slew_per_s, 1.0 / env.release_s)
         # one bank: R1–R3, the HAPTEX 40 Hz and 320 Hz carriers, the glove's force-band oscillation
         self.osc = Oscillators(6, self.fs)
         self._freq = np.zeros(6)
@@ -192,16 +195,20 @@ class TactileRenderer:
                          self.surface.roughness, cfg, time_in_state_s=t - self.state_since)
 
         # continuity limits (§2.4): every amplitude is slew-limited
+        # the sleeve envelope rises and falls with the surface's PHSM attack/release, never faster
+        # than the continuity limit
         slew = cfg.control.amplitude_slew_per_s * dt
         if state != ContactState.NONE:
             gate = 1.0
         elif self.prearmed:  # start the ramp so that it reaches prearm_level at the predicted contact
             lvl = cfg.feedforward.prearm_level
-            gate = max(0.0, lvl - pred.time_to_contact_s * cfg.control.amplitude_slew_per_s)
+            gate = max(0.0, lvl - pred.time_to_contact_s * self.rise_per_s)
             gate = max(gate, min(self.envelope, lvl))
         else:
             gate = 0.0
-        self.envelope = _slew1(self.envelope, gate * alloc.sleeve_gain, slew)
+        target = gate * alloc.sleeve_gain
+        rate = self.rise_per_s if target > self.envelope else self.fall_per_s
+        self.envelope = _slew1(self.envelope, target, rate * dt)
         self.region_amp = _slew(self.region_amp, self.envelope * alloc.region_amp, slew)
         # glove support stays inside its 0–20 Hz band: critically damped 2nd-order low-pass at the band top
         k = 1.0 - math.exp(-2.0 * math.pi * cfg.allocation.glove_band_hz[1] * dt)
