@@ -31,12 +31,14 @@ _EXTENT = np.array([0.20, 0.13, 0.16])  # the reachable box, metres
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--trials", type=int, default=60, help="random trials per setting (default 60)")
+    p.add_argument("--trials", type=int, default=200, help="random trials per setting (default 200)")
     p.add_argument("--points", type=int, default=20, help="point pairs per trial (default 20)")
     p.add_argument("--poses", default="4,6,8,12,16,24", help="pose counts for the camera-robot curve")
     p.add_argument("--pose-seeds", type=int, default=2, help="seeds per pose count (default 2)")
     p.add_argument("--no-render", action="store_true", help="skip the rendered camera-robot part")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--stereo-dir", default=".pytest_cache/d/opencv-doc-stereo",
+                   help="folder with OpenCV's left*.jpg/right*.jpg sample pairs (skipped when absent)")
 
 
 # ---------------------------------------------------------------------------------------- methods
@@ -243,6 +245,25 @@ def _camera_robot(pose_counts, seeds, out: Path):
     return {"rows": rows, "pose_set": pose_set, "render_size": list(sim.size)}
 
 
+def _stereo(folder: Path):
+    """Our stereo calibration against OpenCV's stereo_calib procedure on OpenCV's sample pairs."""
+    from vishap.registration.stereo_calib import Board, calibrate_stereo, opencv_sample_stereo_calib
+
+    left, right = sorted(folder.glob("left*.jpg")), sorted(folder.glob("right*.jpg"))
+    if not left or len(left) != len(right):
+        return {"skipped": f"no sample pairs in {folder} (run the registration tests once to fetch them)"}
+    board = Board(9, 6, 0.025)
+    out = {"pairs": len(left)}
+    for name, fn in (("ours_k5", lambda: calibrate_stereo(left, right, board).summary()),
+                     ("ours_rational", lambda: calibrate_stereo(left, right, board, model="rational").summary()),
+                     ("opencv_stereo_calib_sample", lambda: opencv_sample_stereo_calib(left, right, board))):
+        t0 = time.perf_counter()
+        r = fn()
+        out[name] = {"rms_px": r["rms_px"], "pairs_used": r["pairs_used"], "baseline_squares": r["baseline_m"] / 0.025,
+                     "fx_px": r["fx_px"], "wall_s": time.perf_counter() - t0}
+    return out
+
+
 # ---------------------------------------------------------------------------------------- charts
 def _chart_noise(r, path):
     fig, ax = new_figure(figsize=(6.4, 4.2))
@@ -346,6 +367,7 @@ def run(args: argparse.Namespace) -> dict:
     rec["goal_noise_floor_at_0p5mm"] = {name: v[i] for name, v in noise["ratio_to_floor"].items()}
     rec["goal_correct_at_30pct_outliers"] = {name: v["correct_fraction"][outliers["outlier_fraction"].index(0.3)]
                                              for name, v in outliers["methods"].items()}
+    rec["stereo_calibration"] = _stereo(Path(args.stereo_dir))
     if not args.no_render:
         rec["camera_robot"] = _camera_robot([int(s) for s in args.poses.split(",")], args.pose_seeds, out)
     rec["charts"] = sorted(str(p) for p in out.glob("registration_*.png"))
