@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vishap._core.errors import ShapeError, VisionError
-from vishap.vision.fingertip import FingertipConfig, detect_fingertips
+from vishap.vision.fingertip import FingertipConfig, detect_fingertips, refine_with_background
 from vishap.vision.rig import StereoRig
 from vishap.vision.segment import SegmentConfig, Segmenter, snap_roi
 from vishap.vision.skin_model import SkinModel
@@ -40,6 +40,8 @@ class PipelineConfig:
     max_candidates: int = 4         # fingertip candidates per view in a full-frame search
     learn_frames: int = 10
     recheck_frames: int = 15        # while tracking, search the full frame every this many frames (0: never)
+    colour_refine: bool = False     # cap fit on colour unmixed against the background (measured worse on shaded renders)
+    filtered_output: bool = True    # report Kalman-filtered tips (else the raw detections)
     full_search_on_miss: bool = True  # a miss in the window triggers a full-frame search of that view
     recheck_jump_px: float = 12.0   # a recheck result this far from the track restarts the track there
     tracking: bool = True           # False: always search the full frame
@@ -136,6 +138,11 @@ class VisionPipeline:
         timings["stereo_ms"] = (time.perf_counter() - t1) * 1e3
         timings["total_ms"] = (time.perf_counter() - t0) * 1e3
         conf = min(self.trackers["left"].confidence, self.trackers["right"].confidence)
+        if sp.ok and self.config.filtered_output and all(self.trackers[s].kf.misses == 0 for s in ("left", "right")):
+            # report the Kalman posteriors of both views (less pixel noise), triangulated the same way
+            found = {s: self.trackers[s].kf.position.copy() for s in ("left", "right")}
+            spf = triangulate_tip(self.rig, found["left"], found["right"], self.config.stereo)
+            sp = spf if spf.ok else sp
         if sp.ok:
             self._z = float(sp.p_cam[2])
             return TipEstimate(t, True, sp.p_cam, sp.cov_cam, found["left"], found["right"], conf, timings, modes["left"])
@@ -223,6 +230,11 @@ class VisionPipeline:
         te = time.perf_counter()
         timings[f"segment_{side}_ms"] = (td - ts) * 1e3
         timings[f"detect_{side}_ms"] = (te - td) * 1e3
+        if cfg.colour_refine and tips:
+            x0, y0, x1, y1 = roi
+            img_roi, bg_roi = image[y0:y1, x0:x1], seg.mean_image[y0:y1, x0:x1]
+            for tip in tips[:2] if mode != "tracked" else tips:
+                refine_with_background(img_roi, bg_roi, mask, tip)
         for tip in tips:
             tip.uv = tip.uv + roi[:2]
         return tips, mode

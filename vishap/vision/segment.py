@@ -174,6 +174,7 @@ class Segmenter:
             raise VisionError("learning the background needs at least one frame")
         mean = cv2.convertScaleAbs(acc, alpha=1.0 / n)
         self.image_size = (mean.shape[1], mean.shape[0])
+        self.mean_image = mean                  # the averaged background (used for colour refinement)
         self.background = self.histograms(mean)
 
     def histograms(self, image: np.ndarray) -> np.ndarray:
