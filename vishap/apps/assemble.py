@@ -30,16 +30,15 @@ def make_rig(cfg: DemoConfig):
     return StereoRig.from_fov(cfg.width, cfg.height, RIG_HFOV_DEG, RIG_BASELINE_M)
 
 
-def calibrate(cfg: DemoConfig, rig, out: Path, *, plant=None, renderer=None, T_true=None,
-              poses: int = 12) -> tuple[np.ndarray | None, dict]:
+def calibrate(cfg: DemoConfig, rig, out: Path, *, poses: int = 12) -> tuple[np.ndarray | None, dict]:
     """The system's camera → robot transform: from ``cfg.calib``, or calibrated in simulation.
 
     A missing or unreadable calibration file is not fatal in a batch run: the run goes on without a
     calibration (the guard retreats the device and the summary counts it) and a warning names the
-    file. Without ``cfg.calib`` the camera-robot procedure of :mod:`vishap.registration.robot_calib`
-    runs on the simulated device: the MuJoCo arm is placed at ``poses`` targets spanning the
+    file. Without ``cfg.calib`` the camera-robot procedure runs on the simulated device
+    (:func:`vishap.registration.sim.calibrate_sim`: the arm visits ``poses`` targets spanning the
     reachable box, its green marker is rendered, detected and triangulated, and the absolute
-    orientation is solved (VisHap Eq. 3). The result is saved as ``OUT/camera_robot.yaml``.
+    orientation is solved, VisHap Eq. 3); the result is saved as ``OUT/camera_robot.yaml``.
     """
     cr = need("vishap.registration.camera_robot", "registration (camera-robot file)")
     if cfg.calib is not None:
@@ -48,32 +47,13 @@ def calibrate(cfg: DemoConfig, rig, out: Path, *, plant=None, renderer=None, T_t
         except CalibrationError as exc:
             print(f"vishap demo: warning: calibration unavailable, the device will retreat: {exc}", file=sys.stderr)
             return None, {"source": str(cfg.calib), "error": str(exc)}
-    rc = need("vishap.registration.robot_calib", "registration (camera-robot procedure)")
-    kin = need("vishap.robot.kinematics", "robot kinematics")
-    sim_state = need("vishap.sim.state", "synthetic frame state")
-
-    def move_to(target):
-        try:
-            q = kin.ik(target, plant.params)
-        except Exception:
-            return None
-        plant.reset(q)
-        return plant.read().p_robot
-
-    def grab(p_robot, target):
-        q = plant.read().q
-        pair = renderer.render(sim_state.FrameState(
-            t=0.0, tip_robot=np.array([0.25, 0.0, 0.0]), hand_visible=False, device_points_robot=kin.link_points(q),
-            ee_robot=p_robot, passive_object=None, marker=True))
-        return pair.left, pair.right
-
-    targets = rc.select_poses(poses, seed=cfg.seed)
-    obs = rc.measure(targets, rig, move_to=move_to, grab=grab)
-    fit = rc.solve(obs, rig, robust=True, refine=True)
-    report = rc.report(fit, obs, T_true, rig=rig)
-    path = cr.save(out / "camera_robot.yaml", fit.T, report, rig=rig)
-    plant.reset()
-    return cr.load(path, rig=rig), {"source": "simulation", "file": str(path), **report}
+    sim = need("vishap.registration.sim", "registration (simulated camera-robot calibration)")
+    rig_path = rig.save(out / "rig.yaml")
+    rec = sim.calibrate_sim(n_poses=poses, seed=cfg.seed, rig_path=rig_path, out=out / "camera_robot.yaml",
+                            scene=cfg.scene)
+    keep = ("poses", "poses_used", "per_axis_error_mm", "rms_mm", "rotation_error_deg", "translation_error_mm",
+            "workspace_per_axis_error_mm", "reprojection_rms_px")
+    return cr.load(out / "camera_robot.yaml", rig=rig), {"source": "simulation", **{k: rec.get(k) for k in keep}}
 
 
 def build(cfg: DemoConfig, out: Path) -> Stages:
@@ -85,9 +65,7 @@ def build(cfg: DemoConfig, out: Path) -> Stages:
     world_scene = need("vishap.world.scene", "world (scenes)")
     world_mod = need("vishap.world.world", "world")
     kin = need("vishap.robot.kinematics", "robot kinematics")
-    plant_mod = need("vishap.robot.plant", "robot (MuJoCo plant)")
     mjcf = need("vishap.robot.mjcf", "robot (model)")
-    servo_mod = need("vishap.robot.servo", "robot (servo loop)")
     runtime = need("vishap.runtime", "runtime")
 
     rig = make_rig(cfg)
@@ -98,14 +76,13 @@ def build(cfg: DemoConfig, out: Path) -> Stages:
     po_render = sim_state.PassiveObject(shape=po_spec.shape, size_m=tuple(po_spec.size_m))
     mount = np.asarray(po_render.mount_offset_robot, float)
     renderer = sim_render.StereoRenderer(rig, T_true, cfg.scene, seed=cfg.seed)
-    ctrl_mod = need("vishap.robot.controller", "robot (controller)")
+    build_mod = need("vishap.robot.build", "robot (servo builder)")
     shape = "sphere" if po_spec.shape == "sphere" else "plate"
     size = (po_spec.size_m[0] / 2,) if shape == "sphere" else tuple(po_spec.size_m)
-    plant = plant_mod.MujocoPlant(passive_object=mjcf.PassiveObject(shape, size, po_spec.mass_kg),
-                                  substeps=cfg.substeps)
-    controller = ctrl_mod.Controller(plant.params, ctrl_mod.Gains(), limits=plant.limits)
-    servo = servo_mod.ServoLoop(plant, controller)
-    T_est, calib_report = calibrate(cfg, rig, out, plant=plant, renderer=renderer, T_true=T_true)
+    servo = build_mod.build_servo(mjcf.PassiveObject(shape, size, po_spec.mass_kg), substeps=cfg.substeps,
+                                  sensor=cfg.encoder)
+    plant, controller = servo.device, servo.controller
+    T_est, calib_report = calibrate(cfg, rig, out)
     world = world_mod.World(scene, latency_s=cfg.vision_latency_s + 0.5 / cfg.scene_hz)
     lim = plant.limits
     lo = np.asarray(lim.workspace_min, float)
