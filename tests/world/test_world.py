@@ -111,6 +111,8 @@ def test_predictors_follow_constant_velocity_and_missed_frames():
     assert tau == pytest.approx(0.1) and np.allclose(c, [0.21, 0.0, -0.15])
     c, tau = contact_point([0.2, 0.0, -0.10], [0.1, 0.0, 0.5], [0, 0, 1], -0.15, horizon_s=0.5)
     assert tau is None and np.allclose(c, [0.2, 0.0, -0.15])
+    c, tau = contact_point([0.2, 0.0, -0.151], [0.1, 0.0, -0.5], [0, 0, 1], -0.15, horizon_s=0.5)
+    assert tau == 0.0 and np.allclose(c, [0.2, 0.0, -0.15])
 
 
 def test_contact_render_gates_the_law_and_the_object_gain():

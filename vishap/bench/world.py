@@ -243,6 +243,23 @@ def run(args) -> dict:
         policies[f"{pred}+{ho}+{cm}"] = {**_summary(rs, in_place_m), "errors_mm": [r.contact_error_m * 1e3 for r in rs],
                                     "speeds": [r.speed_m_s for r in rs]}
     charts.append(str(_plot_policies(policies, out / "policies.png")))
+
+    # what limits the meeting: the same approaches with better fingertip data (default policy)
+    sens = {}
+    for label, vm in (
+        ("camera_60hz_20ms", VisionModel(60.0, 0.020, vision.noise_m, vision.dropout)),
+        ("no_noise_no_dropout", VisionModel(vision.rate_hz, vision.latency_s, 0.0, 0.0)),
+        ("ideal_250hz_no_latency_no_noise", VisionModel(250.0, 0.0, 0.0, 0.0)),
+    ):
+        rs = [
+            run_approach(pol_scene, tr, World(pol_scene, latency_s=vm.latency_s), vision=vm,
+                         seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02)
+            for i, tr in enumerate(trajs)
+        ]
+        sm = _summary(rs, in_place_m)
+        sens[label] = {k: sm[k] for k in ("device_in_place_rate", "contact_position_error_mm", "contact_lead_time_ms_min")}
+        sens[label]["straight_paths_in_place_rate"] = float(np.mean([r.in_place for r, tr in zip(rs, trajs) if abs(tr.bow_m) < 0.002] or [np.nan]))
+    record["sensitivity"] = sens
     record["policies"] = {k: {kk: vv for kk, vv in v.items() if kk not in ("errors_mm", "speeds")} for k, v in policies.items()}
 
     record["servo_cost_us"] = _servo_cost(scenes)

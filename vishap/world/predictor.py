@@ -177,15 +177,19 @@ class MeetingPoint:
 
 class PathExtrapolator:
     """Where the finger's *path* meets a surface: the recent raw samples' tangential coordinates
-    fitted as a quadratic in their height above the surface and evaluated at height 0.
+    fitted as a quadratic in their height above the surface and evaluated at height 0. Its variance
+    is the measurement noise through the fit's leverage plus ``(model_error · h)²`` for the height
+    ``h`` still to be covered (the path may still bend).
 
     The path's shape does not depend on timing, so latency and the finger's deceleration do not
     bias it, and a bowed reach is followed. Returns the point and its variance from the fit's
     leverage and the measurement noise, or None with too few samples or too little descent.
     """
 
-    def __init__(self, *, window_s: float = 0.4, meas_std_m: float = 0.0008, min_span_m: float = 0.006):
+    def __init__(self, *, window_s: float = 0.4, meas_std_m: float = 0.0008, min_span_m: float = 0.006,
+                 model_error: float = 0.1):
         self.window_s = float(window_s)
+        self.model_error = float(model_error)
         self.var_meas = float(meas_std_m) ** 2
         self.min_span = float(min_span_m)
         self.reset()
@@ -212,7 +216,9 @@ class PathExtrapolator:
         coef, *_ = np.linalg.lstsq(X, q[:, :2], rcond=None)
         lev = float(np.linalg.inv(X.T @ X)[-1, -1])
         uv = coef[-1]
-        return centre + R_robot_obj[:, 0] * uv[0] + R_robot_obj[:, 1] * uv[1], self.var_meas * lev
+        # noise through the fit's leverage, plus a model error growing with the height still to cover
+        var = self.var_meas * lev + (self.model_error * h[-1]) ** 2
+        return centre + R_robot_obj[:, 0] * uv[0] + R_robot_obj[:, 1] * uv[1], var
 
 
 PREDICTORS = {"none": LastSample, "cv": FiniteDifference, "kalman": KalmanPredictor}
@@ -237,6 +243,8 @@ def contact_point(p_robot, v_robot, normal, offset_m: float, *, horizon_s: float
     v = np.asarray(v_robot, dtype=float)
     n = np.asarray(normal, dtype=float)
     h = float(n @ p - offset_m)
+    if h <= 0.0:  # already at or under the surface: its projection
+        return p - n * h, 0.0
     closing = -float(n @ v)
     tau = None
     if closing > min_speed_m_s and h > 0:
