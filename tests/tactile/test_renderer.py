@@ -155,3 +155,17 @@ def test_examples_cli(capsys):
     rec = json.loads(capsys.readouterr().out)
     assert rec["all_correct"] and rec["slip"]["state"] == "slip"
     assert math.isclose(rec["distributed"]["regions"][1]["beta_hz"], 120)
+
+
+def test_prearm_is_held_until_the_sensor_confirms_but_never_started_by_touch():
+    from vishap.tactile.feedforward import ContactPredictor
+
+    p = ContactPredictor(CFG.feedforward)
+    # touching without any approach history: no pre-arm (purely reactive)
+    assert not p.update(ContactSample(0.0, [0, 0, 0], 0.01, [0, 0, -0.1], True)).prearm
+    p.reset()
+    assert p.update(ContactSample(0.0, [0, 0, 0.0005], 0.0, [0, 0, -0.1], False)).prearm
+    held = p.update(ContactSample(0.001, [0, 0, 0], 0.01, [0, 0, -0.1], True))
+    assert held.prearm and held.time_to_contact_s == 0.0
+    assert not p.update(ContactSample(0.002, [0, 0, 0], 0.1, [0, 0, 0], True), confirmed=True).prearm
+    assert p.false_prearms == 0 and p.prearms == 1

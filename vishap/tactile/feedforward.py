@@ -62,7 +62,13 @@ class ContactPredictor:
         self.false_prearms = 0
         self._lockout = False  # after a false pre-arm, wait until the finger stops approaching
 
-    def update(self, s: ContactSample) -> Prediction:
+    def update(self, s: ContactSample, *, confirmed: bool = False) -> Prediction:
+        """One sample; ``confirmed`` when the sleeve's sensor already reports contact.
+
+        Between the touch reported by the contact stream and the sensor array's confirmation (the
+        pressure needs a few ms to build) an existing pre-arm is held with τ = 0; it is never
+        started then, so without feed-forward the onset stays purely sensor-triggered.
+        """
         if self._last is not None:
             dt = s.t - self._last.t
             if dt > 0:
@@ -70,10 +76,17 @@ class ContactPredictor:
                 k = min(1.0, dt / self.cfg.accel_filter_s)
                 self.accel += k * (raw - self.accel)
         self._last = s
-        if s.in_contact:
+        if confirmed or (s.in_contact and self.armed_since is None):
             self.armed_since = None
             self._lockout = False
             return Prediction(False, 0.0, ContactState.NONE)
+        if s.in_contact:  # touching, not yet confirmed by the sensor: hold the pre-arm
+            self._lockout = False
+            if s.t - self.armed_since > self.cfg.prearm_timeout_s:
+                self.armed_since = None
+                return Prediction(False, 0.0, ContactState.NONE)
+            state = ContactState.SLIP if s.tangential_speed > self.slip_speed else ContactState.CONCENTRATED
+            return Prediction(True, 0.0, state)
         if not self.cfg.enabled:
             return Prediction(False, None, ContactState.NONE)
         h, v = float(s.position[2]), float(s.velocity[2])

@@ -174,7 +174,7 @@ class TactileRenderer:
         feats, force, centre, radius = self._sense(sample)
         self.features = feats
         state = self.classifier.update(feats)
-        pred = self.predictor.update(sample)
+        pred = self.predictor.update(sample, confirmed=state != ContactState.NONE)
         self.prearmed = pred.prearm and state == ContactState.NONE
         eff = state if state != ContactState.NONE else (pred.state if self.prearmed else ContactState.NONE)
         if eff != self.effective_state:
