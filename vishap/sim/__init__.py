@@ -1,0 +1,8 @@
+"""Synthetic stereo sequences with exact ground truth: a hand, the haptic device and a scene rendered
+with pyrender through a calibrated stereo rig (issue 3; VisHap §3 is what they are made to test).
+
+Modules: ``camera_placement`` (the true ``T_robot_cam``), ``renderer`` (``StereoRenderer``,
+``FrameState``, ``RenderedPair``), ``hand``, ``device``, ``scene_objects``, ``textures``,
+``camera_effects``, ``trajectory`` (scripted finger/device motion from data), ``writer`` and
+``reader`` (the on-disk sequence format). Importing this package does not import pyrender.
+"""

@@ -1,0 +1,370 @@
+"""Offscreen stereo rendering of a hand, the haptic device and a scene (pyrender, EGL on the CPU).
+
+``StereoRenderer(rig, T_robot_cam, scene).render(state)`` draws both cameras of a
+:class:`~vishap.vision.rig.StereoRig` and returns, from the same scene and the same pass, colour
+(BGR ``uint8``), per-pixel labels (0 background, 1 skin, 2 device and its passive object, 3 scene
+object) and depth (``float32`` metres along the optical axis, 0 where nothing was hit).
+
+Labels cost no second colour pass: every material carries its label in its alpha
+(``label × 64 / 255``) and the colour pass is read back as RGBA. That is exact without multisample
+anti-aliasing (the default; the camera's defocus softens edges instead). With ``msaa > 0`` the
+alpha of edge pixels would mix labels, so a flat segmentation pass without MSAA is made instead.
+
+Cameras with distortion or skew are rendered as ideal pinhole cameras on a larger canvas and
+warped into the real camera with ``cv2.remap`` (nearest neighbour for labels and depth), so that
+the ground truth ``rig.project(p_cam)`` and the pixels agree for any calibrated rig.
+"""
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import trimesh
+
+from vishap._core.check import as_transform
+from vishap._core.errors import ConfigError
+from vishap.sim import hand as _hand
+from vishap.sim._pyrender import import_pyrender, set_msaa
+from vishap.sim.camera_effects import CameraEffects, EffectsState, apply_effects
+from vishap.sim.scene_objects import SceneSpec, load_scene_spec, object_meshes
+from vishap.sim.state import FrameState, PassiveObject, RenderedPair
+from vishap.sim.textures import choose_background, make_texture
+from vishap.vision.rig import StereoRig
+
+__all__ = ["StereoRenderer", "FrameState", "RenderedPair", "PassiveObject"]
+
+_GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])  # OpenCV camera axes → OpenGL camera axes
+_MAX_LINKS = 8
+_ALPHA_STEP = 64
+
+
+def _srgb_to_linear(c):
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+class StereoRenderer:
+    """Render :class:`FrameState` s of one scene through both cameras of a rig.
+
+    Parameters
+    ----------
+    rig: the stereo rig (image size, intrinsics, distortion, right camera pose).
+    T_robot_cam: (4, 4) left camera → robot frame.
+    scene: a scene name (``wall``, ``button``, ``fabric``) or a scene file.
+    background: a texture name, ``auto`` (an ordinary texture chosen by seed) or ``mixed``.
+    seed: per-sequence randomness (skin-tone variation, texture, sensor noise).
+    skin_tone: a name of :data:`vishap.sim.hand.SKIN_TONES` or 0 (light) … 1 (dark); None picks by seed.
+    effects: camera effects (on by default); ``CameraEffects.off()`` or None for exact pixels.
+    msaa: multisample count of the colour pass (0 = off, labels from the same pass).
+    threads: llvmpipe rasteriser threads (``LP_NUM_THREADS``), only before the first renderer.
+    """
+
+    def __init__(self, rig: StereoRig, T_robot_cam, scene: str | SceneSpec = "wall", *, background: str = "auto",
+                 seed: int = 0, skin_tone=None, effects: CameraEffects | None = CameraEffects(), msaa: int = 0,
+                 threads: int | None = None):
+        if not isinstance(rig, StereoRig):
+            raise ConfigError(f"rig must be a StereoRig, got {type(rig).__name__}", field="rig")
+        self.pyrender = pr = import_pyrender(threads)
+        self.rig = rig
+        self.T_robot_cam = as_transform(T_robot_cam, "T_robot_cam")
+        self.spec = scene if isinstance(scene, SceneSpec) else load_scene_spec(scene)
+        self.seed = int(seed)
+        self.msaa = int(msaa)
+        self.effects = effects if effects is not None else CameraEffects.off()
+        self._fx_state = EffectsState()
+        rng = np.random.default_rng([self.seed, 0x5EED])
+        self.background = choose_background(background, self.seed)
+        if skin_tone is None:
+            skin_tone = float(rng.uniform(0.0, 1.0))
+        self.skin_rgb = _hand.skin_tone_rgb(skin_tone, rng)
+        self._light_base: dict = {}
+        self.scene = pr.Scene(bg_color=[0.0, 0.0, 0.0, 0.0], ambient_light=[0.22, 0.22, 0.22])
+        self._ambient = np.array([0.22, 0.22, 0.22])
+        self._build_static(rng)
+        self._build_hand()
+        self._build_device()
+        self._build_cameras()
+        self._offscreen = None
+
+    # ------------------------------------------------------------------ building
+    def _material(self, rgb, label: int, *, roughness=0.6, metallic=0.0, texture=None):
+        pr = self.pyrender
+        lin = list(_srgb_to_linear(rgb)) if rgb is not None else [1.0, 1.0, 1.0]
+        return pr.MetallicRoughnessMaterial(
+            baseColorFactor=lin + [label * _ALPHA_STEP / 255.0], metallicFactor=metallic, roughnessFactor=roughness,
+            baseColorTexture=texture, alphaMode="OPAQUE",
+        )
+
+    def _add(self, mesh: trimesh.Trimesh, material, label: int, pose=None, name=None):
+        m = self.pyrender.Mesh.from_trimesh(mesh, material=material, smooth=False)
+        node = self.scene.add(m, pose=np.eye(4) if pose is None else pose, name=name)
+        self._labels[node] = label
+        return node
+
+    def _build_static(self, rng) -> None:
+        pr = self.pyrender
+        self._labels: dict = {}
+        tex = make_texture(self.background, np.random.default_rng([self.seed, 0x7E7]))
+        texture = pr.Texture(source=tex, source_channels="RGB", sampler=pr.Sampler(magFilter=9729, minFilter=9987))
+        size, tile = 2.4, 0.40  # table size and texture repeat, m
+        half = size / 2.0
+        cx = 0.3
+        pos = np.array([[cx - half, -half, 0], [cx + half, -half, 0], [cx + half, half, 0], [cx - half, half, 0]], np.float32)
+        pos[:, 2] = _TABLE_Z
+        uv = (pos[:, :2] - pos[0, :2]) / tile
+        prim = pr.Primitive(positions=pos, normals=np.tile([0, 0, 1], (4, 1)).astype(np.float32),
+                            texcoord_0=uv.astype(np.float32), indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
+                            material=self._material(None, 0, roughness=0.85, texture=texture))
+        node = self.scene.add(pr.Mesh([prim]), name="table")
+        self._labels[node] = 0
+        for name, mesh, rgb in object_meshes(self.spec):
+            self._add(mesh, self._material(rgb, 3, roughness=0.5), 3, name=name)
+        # lights: a key light from above the user's side, a fill near the cameras
+        key = pr.DirectionalLight(color=np.ones(3), intensity=2.6)
+        fill = pr.PointLight(color=np.ones(3), intensity=0.9)
+        self._key_node = self.scene.add(key, pose=_light_pose([0.6, 0.2, 0.6], [0.2, 0.0, -0.15]))
+        cam_pos = self.T_robot_cam[:3, 3]
+        self._fill_node = self.scene.add(fill, pose=_translation(cam_pos + np.array([0.0, 0.0, 0.15])))
+        self._light_base = {self._key_node: 2.6, self._fill_node: 0.9}
+
+    def _build_hand(self) -> None:
+        skin = self._material(self.skin_rgb, 1, roughness=0.55)
+        nail_rgb = tuple(min(1.0, 0.55 * c + 0.45 * d) for c, d in zip(self.skin_rgb, (0.96, 0.80, 0.80)))
+        nail = self._material(nail_rgb, 1, roughness=0.3)
+        self._hand_nodes = {}
+        for name, mesh in _hand.hand_part_meshes().items():
+            self._hand_nodes[name] = self._add(mesh, nail if name == "nail" else skin, 1, name=name)
+
+    def _build_device(self) -> None:
+        link_mat = self._material((0.16, 0.16, 0.17), 2, roughness=0.45, metallic=0.2)
+        joint_mat = self._material((0.05, 0.05, 0.05), 2, roughness=0.4)
+        cyl = trimesh.creation.cylinder(radius=0.007, height=1.0, sections=16)  # unit length along z
+        ball = trimesh.creation.icosphere(subdivisions=2, radius=0.011)
+        self._link_nodes = [self._add(cyl, link_mat, 2) for _ in range(_MAX_LINKS)]
+        self._joint_nodes = [self._add(ball, joint_mat, 2) for _ in range(_MAX_LINKS + 1)]
+        base = trimesh.creation.box(extents=(0.16, 0.14, 0.02))
+        self._base_node = self._add(base, joint_mat, 2)
+        bracket = trimesh.creation.box(extents=(1.0, 0.010, 0.004))  # scaled along x per frame
+        self._bracket_node = self._add(bracket, joint_mat, 2)
+        plate_mat = self._material((0.62, 0.64, 0.67), 2, roughness=0.35, metallic=0.4)
+        key_mat = self._material((0.22, 0.22, 0.24), 2, roughness=0.5)
+        self._passive_nodes = {
+            "plate": self._add(trimesh.creation.box(extents=(1.0, 1.0, 1.0)), plate_mat, 2),
+            "key": self._add(trimesh.creation.box(extents=(1.0, 1.0, 1.0)), key_mat, 2),
+        }
+        marker = trimesh.creation.icosphere(subdivisions=3, radius=0.005)
+        self._marker_node = self._add(marker, self._material((0.0, 1.0, 0.0), 2, roughness=0.5), 2)
+        occ = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=16)  # scaled per frame
+        self._occluder_node = self._add(occ, self._material((0.10, 0.10, 0.11), 0, roughness=0.5), 0)
+
+    def _build_cameras(self) -> None:
+        pr = self.pyrender
+        w, h = self.rig.image_size
+        self._cams = {}
+        self._remap = {}
+        T_left_right = np.eye(4)
+        T_left_right[:3, :3] = self.rig.R.T
+        T_left_right[:3, 3] = -self.rig.R.T @ self.rig.T
+        poses = {"left": self.T_robot_cam, "right": self.T_robot_cam @ T_left_right}
+        self._canvas = (w, h)
+        margins = {}
+        for side, K, d in (("left", self.rig.K_left, self.rig.dist_left), ("right", self.rig.K_right, self.rig.dist_right)):
+            if np.any(d) or K[0, 1] != 0.0:
+                margins[side] = _pinhole_margin(K, d, w, h)
+        m = max(margins.values(), default=0)
+        self._margin = m
+        self._canvas = (w + 2 * m, h + 2 * m)
+        for side, K, d in (("left", self.rig.K_left, self.rig.dist_left), ("right", self.rig.K_right, self.rig.dist_right)):
+            cam = pr.IntrinsicsCamera(fx=K[0, 0], fy=K[1, 1], cx=K[0, 2] + 0.5 + m, cy=K[1, 2] + 0.5 + m, znear=0.03, zfar=6.0)
+            self._cams[side] = self.scene.add(cam, pose=poses[side] @ _GL_FROM_CV, name=f"camera_{side}")
+            if m:
+                self._remap[side] = _distortion_maps(K, d, w, h, m)
+
+    # ------------------------------------------------------------------ per frame
+    def _set_visible(self, node, visible: bool) -> None:
+        node.mesh.is_visible = bool(visible)
+
+    def _update(self, s: FrameState) -> None:
+        # hand
+        if s.hand_visible:
+            poses = _hand.hand_part_poses(s.tip_robot, s.finger_dir_robot, s.flexion, s.hand_roll)
+            for name, node in self._hand_nodes.items():
+                self._set_visible(node, True)
+                self.scene.set_pose(node, poses[name])
+        else:
+            for node in self._hand_nodes.values():
+                self._set_visible(node, False)
+        # device
+        pts = None if s.device_points_robot is None else np.asarray(s.device_points_robot, dtype=np.float64)
+        n_links = 0 if pts is None else min(len(pts) - 1, _MAX_LINKS)
+        for i, node in enumerate(self._link_nodes):
+            if i < n_links:
+                self._set_visible(node, True)
+                self.scene.set_pose(node, _segment_pose(pts[i], pts[i + 1]))
+            else:
+                self._set_visible(node, False)
+        for i, node in enumerate(self._joint_nodes):
+            if pts is not None and 0 < i <= n_links:
+                self._set_visible(node, True)
+                self.scene.set_pose(node, _translation(pts[i]))
+            else:
+                self._set_visible(node, False)
+        self._set_visible(self._base_node, pts is not None)
+        if pts is not None:
+            self.scene.set_pose(self._base_node, _translation(pts[0] + np.array([0.0, 0.0, 0.010])))
+        ee = None if s.ee_robot is None else np.asarray(s.ee_robot, dtype=np.float64)
+        po = s.passive_object
+        for shape, node in self._passive_nodes.items():
+            show = po is not None and ee is not None and po.shape == shape
+            self._set_visible(node, show)
+            if show:
+                top = po.top_centre_robot(ee)
+                sx, sy, sz = po.size_m
+                T = np.diag([sx, sy, sz, 1.0])
+                T[:3, 3] = top - np.array([0.0, 0.0, sz / 2.0])
+                self.scene.set_pose(node, T)
+        show_bracket = po is not None and ee is not None and np.linalg.norm(po.mount_offset_robot) > 0
+        self._set_visible(self._bracket_node, show_bracket)
+        if show_bracket:
+            a = ee
+            b = po.top_centre_robot(ee) - np.array([0.0, 0.0, po.size_m[2] + 0.002])
+            self.scene.set_pose(self._bracket_node, _segment_pose(a, b, along="x"))
+        self._set_visible(self._marker_node, bool(s.marker) and ee is not None)
+        if s.marker and ee is not None:
+            self.scene.set_pose(self._marker_node, _translation(ee))
+        # occluder
+        occ = s.occluder
+        self._set_visible(self._occluder_node, occ is not None)
+        if occ is not None:
+            T = _segment_pose(np.asarray(occ.a_robot), np.asarray(occ.b_robot))
+            T[:3, :3] = T[:3, :3] @ np.diag([occ.radius_m, occ.radius_m, 1.0])
+            self.scene.set_pose(self._occluder_node, T)
+        # lights
+        for node, base in self._light_base.items():
+            node.light.intensity = base * float(s.light)
+        self.scene.ambient_light = self._ambient * float(s.light)
+
+    def _renderer(self):
+        if self._offscreen is None:
+            w, h = self._canvas
+            self._offscreen = self.pyrender.OffscreenRenderer(w, h)
+        return self._offscreen
+
+    def render(self, state: FrameState) -> RenderedPair:
+        """Render one frame through both cameras."""
+        pr = self.pyrender
+        self._update(state)
+        r = self._renderer()
+        out = {}
+        set_msaa(r, self.msaa)
+        for side in ("left", "right"):
+            self.scene.main_camera_node = self._cams[side]
+            rgba, depth = r.render(self.scene, flags=pr.RenderFlags.RGBA)
+            labels = ((rgba[..., 3].astype(np.uint16) + _ALPHA_STEP // 2) // _ALPHA_STEP).astype(np.uint8)
+            out[side] = [np.ascontiguousarray(rgba[..., 2::-1]), labels, depth]
+        if self.msaa:
+            set_msaa(r, 0)
+            seg_map = {n: np.full(3, lab * _ALPHA_STEP, np.uint8) for n, lab in self._labels.items() if lab}
+            for side in ("left", "right"):
+                self.scene.main_camera_node = self._cams[side]
+                seg, _ = r.render(self.scene, flags=pr.RenderFlags.SEG, seg_node_map=seg_map)
+                out[side][1] = ((seg[..., 0].astype(np.uint16) + _ALPHA_STEP // 2) // _ALPHA_STEP).astype(np.uint8)
+            set_msaa(r, self.msaa)
+        for side, maps in self._remap.items():
+            c, lab, dep = out[side]
+            out[side] = [cv2.remap(c, *maps, cv2.INTER_LINEAR), cv2.remap(lab, *maps, cv2.INTER_NEAREST),
+                         cv2.remap(dep, *maps, cv2.INTER_NEAREST)]
+        images = {k: v[0] for k, v in out.items()}
+        if self.effects.any:
+            tip_uv = {"left": None, "right": None}
+            if state.hand_visible:
+                p_cam = (np.linalg.inv(self.T_robot_cam) @ np.append(state.tip_robot, 1.0))[:3]
+                uvl, uvr = self.rig.project(p_cam)
+                tip_uv = {"left": uvl[0], "right": uvr[0]}
+            masks = {k: v[1] == 1 for k, v in out.items()}
+            images = apply_effects(self.effects, self._fx_state, images, masks, tip_uv, float(state.t), self.seed)
+        return RenderedPair(left=images["left"], right=images["right"], labels_left=out["left"][1],
+                            labels_right=out["right"][1], depth_left=out["left"][2], depth_right=out["right"][2])
+
+    def reset_effects(self) -> None:
+        """Forget the auto-exposure gain and motion history (start of a new sequence)."""
+        self._fx_state = EffectsState()
+
+    def close(self) -> None:
+        if self._offscreen is not None:
+            self._offscreen.delete()
+            self._offscreen = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+from vishap.sim.device import TABLE_Z_M as _TABLE_Z  # noqa: E402
+
+
+def _translation(p) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = p
+    return T
+
+
+def _light_pose(eye, target) -> np.ndarray:
+    """A light's pose: pyrender lights shine along their local −z."""
+    eye, target = np.asarray(eye, float), np.asarray(target, float)
+    z = eye - target
+    z /= np.linalg.norm(z)
+    x = np.cross([0.0, 0.0, 1.0], z)
+    if np.linalg.norm(x) < 1e-6:
+        x = np.array([1.0, 0.0, 0.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, y, z])
+    T[:3, 3] = eye
+    return T
+
+
+def _segment_pose(a, b, along: str = "z") -> np.ndarray:
+    """Pose that maps a unit-length, origin-centred primitive along ``along`` onto segment a→b."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    v = b - a
+    L = float(np.linalg.norm(v))
+    u = v / L if L > 1e-12 else np.array([0.0, 0.0, 1.0])
+    helper = np.array([1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    p = np.cross(u, helper)
+    p /= np.linalg.norm(p)
+    q = np.cross(u, p)
+    R = np.column_stack([p, q, u]) if along == "z" else np.column_stack([u, p, q])
+    S = np.diag([1.0, 1.0, max(L, 1e-6)]) if along == "z" else np.diag([max(L, 1e-6), 1.0, 1.0])
+    T = np.eye(4)
+    T[:3, :3] = R @ S
+    T[:3, 3] = (a + b) / 2.0
+    return T
+
+
+def _pinhole_margin(K, d, w, h) -> int:
+    """Extra pixels around the pinhole canvas needed to cover a distorted camera's view."""
+    border = np.concatenate([
+        np.stack([np.arange(w), np.zeros(w)], 1), np.stack([np.arange(w), np.full(w, h - 1)], 1),
+        np.stack([np.zeros(h), np.arange(h)], 1), np.stack([np.full(h, w - 1), np.arange(h)], 1),
+    ]).astype(np.float64)
+    x = cv2.undistortPoints(border.reshape(-1, 1, 2), K, d).reshape(-1, 2)
+    u = K[0, 0] * x[:, 0] + K[0, 2]
+    v = K[1, 1] * x[:, 1] + K[1, 2]
+    over = max(-u.min(), -v.min(), u.max() - (w - 1), v.max() - (h - 1), 0.0)
+    return int(math.ceil(over)) + 2
+
+
+def _distortion_maps(K, d, w, h, m):
+    """``cv2.remap`` maps from the real (distorted, skewed) camera to the pinhole canvas."""
+    uu, vv = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    pts = np.stack([uu.ravel(), vv.ravel()], 1).reshape(-1, 1, 2)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12)
+    x = cv2.undistortPointsIter(pts, K, d, None, None, crit).reshape(-1, 2)
+    mx = (K[0, 0] * x[:, 0] + K[0, 2] + m).reshape(h, w).astype(np.float32)
+    my = (K[1, 1] * x[:, 1] + K[1, 2] + m).reshape(h, w).astype(np.float32)
+    return mx, my

@@ -1,0 +1,112 @@
+"""Static scene geometry: the table with its textured surface and the scene's objects.
+
+The objects of ``datasets/synthetic/scenes/NAME.yaml`` (VisHap §2.2: wall plane P = (n, d), key
+B = (p, n, w, h); HAPTEX §II: a fabric patch) are *virtual* in an encountered-type system: what
+the finger really touches is the device's passive object, brought to the contact point. They are
+drawn as what a user would see on the bench: the wall's patch as a thin frame, the key as its
+bezel, the fabric as a frame of cloth, each with an open middle in which the device's passive
+object meets the finger. Their top faces lie on the object's surface (z = −0.150 m).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from vishap._core.config import read_mapping
+from vishap._core.errors import ConfigError
+from vishap.sim.device import TABLE_Z_M
+
+__all__ = ["SCENES_DIR", "SCENE_NAMES", "SceneSpec", "load_scene_spec", "object_meshes"]
+
+SCENES_DIR = Path(__file__).resolve().parents[2] / "datasets" / "synthetic" / "scenes"
+SCENE_NAMES = ("wall", "button", "fabric")
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    name: str
+    path: Path
+    surface_z_m: float                         # height of the touched surface, robot frame
+    centre_robot: tuple[float, float, float]
+    extent_m: tuple[float, float]              # size of the object's patch along robot x, y
+    passive_shape: str
+    passive_size_m: tuple[float, float, float]
+    kind: str
+    travel_m: float = 0.0                      # key travel (button), 0 otherwise
+    raw: dict | None = None
+
+
+def load_scene_spec(name_or_path: str | Path) -> SceneSpec:
+    """Read a scene file (a name in ``datasets/synthetic/scenes`` or a path) for drawing."""
+    p = Path(name_or_path)
+    if not p.suffix:
+        p = SCENES_DIR / f"{name_or_path}.yaml"
+        if not p.is_file():
+            known = sorted(q.stem for q in SCENES_DIR.glob("*.yaml"))
+            raise ConfigError(f"unknown scene {str(name_or_path)!r}; expected one of {known} or a .yaml file", field="scene")
+    data = read_mapping(p)
+    try:
+        obj = data["objects"][0]
+        kind = str(obj["kind"])
+        po = data.get("passive_object") or {"shape": "plate", "size_m": [0.04, 0.04, 0.003]}
+        if kind == "button":
+            centre = tuple(float(v) for v in obj["position"])
+            extent = (float(obj["width_m"]), float(obj["height_m"]))
+            surface = centre[2]
+        else:
+            centre = tuple(float(v) for v in obj["centre"])
+            extent = tuple(float(v) for v in obj["extent_m"])
+            surface = float(obj.get("offset_m", centre[2]))
+        normal = np.asarray(obj.get("normal", [0, 0, 1]), dtype=float)
+    except (KeyError, IndexError, TypeError, ValueError) as exc:
+        raise ConfigError(f"scene is missing or has a malformed entry ({exc!r})", file=p, field="objects.0") from None
+    if not np.allclose(normal / np.linalg.norm(normal), [0, 0, 1], atol=1e-6):
+        raise ConfigError("the renderer draws horizontal objects only (normal [0, 0, 1])", file=p, field="objects.0.normal")
+    return SceneSpec(
+        name=str(data.get("name", p.stem)), path=p, surface_z_m=surface, centre_robot=centre,
+        extent_m=extent, passive_shape=str(po["shape"]), passive_size_m=tuple(float(v) for v in po["size_m"]),
+        kind=kind, travel_m=float(obj.get("travel_m", 0.0)), raw=data,
+    )
+
+
+def _box(size, centre) -> trimesh.Trimesh:
+    m = trimesh.creation.box(extents=size)
+    m.apply_translation(centre)
+    return m
+
+
+def _frame(cx, cy, z_top, outer_x, outer_y, band, thick) -> trimesh.Trimesh:
+    """A rectangular ring lying on the plane z = z_top (top face), open in the middle."""
+    zc = z_top - thick / 2.0
+    parts = [
+        _box((outer_x, band, thick), (cx, cy - (outer_y - band) / 2.0, zc)),
+        _box((outer_x, band, thick), (cx, cy + (outer_y - band) / 2.0, zc)),
+        _box((band, outer_y - 2 * band, thick), (cx - (outer_x - band) / 2.0, cy, zc)),
+        _box((band, outer_y - 2 * band, thick), (cx + (outer_x - band) / 2.0, cy, zc)),
+    ]
+    return trimesh.util.concatenate(parts)
+
+
+def object_meshes(spec: SceneSpec) -> list[tuple[str, trimesh.Trimesh, tuple[float, float, float]]]:
+    """(name, mesh, sRGB colour 0…1) of the scene's drawn objects, robot frame."""
+    cx, cy, _ = spec.centre_robot
+    z = spec.surface_z_m
+    ex, ey = spec.extent_m
+    out = []
+    if spec.kind == "button":
+        out.append(("bezel", _frame(cx, cy, z - 0.002, ex + 0.030, ey + 0.030, 0.013, 0.006), (0.30, 0.34, 0.42)))
+    elif spec.kind == "fabric":
+        out.append(("fabric", _frame(cx, cy, z, ex, ey, 0.016, 0.002), (0.18, 0.26, 0.52)))
+    else:
+        out.append(("wall", _frame(cx, cy, z, ex, ey, 0.008, 0.003), (0.55, 0.62, 0.74)))
+    # posts holding the patch above the table at its corners
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            h = z - 0.006 - TABLE_Z_M
+            px = cx + sx * (ex / 2.0 + (0.010 if spec.kind == "button" else -0.006))
+            py = cy + sy * (ey / 2.0 + (0.010 if spec.kind == "button" else -0.006))
+            out.append((f"post{sx}{sy}", _box((0.008, 0.008, h), (px, py, TABLE_Z_M + h / 2.0)), (0.35, 0.37, 0.40)))
+    return out
