@@ -39,3 +39,19 @@ def test_parse_fault():
         parse_fault("meteor:1:2")
     with pytest.raises(argparse.ArgumentTypeError):
         parse_fault("nan:a:b")
+
+
+def test_quick_args_prefer_the_modules_own_setting():
+    import types
+
+    def with_quick(p):
+        p.add_argument("--quick", action="store_true")
+
+    def with_ticks(p):
+        p.add_argument("--ticks", type=int)
+        p.add_argument("--rounds", type=int)
+
+    assert bench_all.quick_args("x", types.SimpleNamespace(QUICK_ARGS=["--n", "3"], add_arguments=with_quick)) == ["--n", "3"]
+    assert bench_all.quick_args("x", types.SimpleNamespace(add_arguments=with_quick)) == ["--quick"]
+    assert bench_all.quick_args("robot", types.SimpleNamespace(add_arguments=with_ticks))[:1] == ["--ticks"]
+    assert bench_all.quick_args("robot", types.SimpleNamespace(add_arguments=lambda p: None)) == []

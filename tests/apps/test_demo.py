@@ -91,6 +91,9 @@ def test_replay_reproduces_vision_world_and_tactile(run, tmp_path):
     for part in ("vision", "world", "tactile"):
         assert rep[part] and all(v == 0.0 for v in rep[part].values()), part
     assert (tmp_path / "replay.json").is_file()
+    from vishap.cli import main
+
+    assert main(["replay", str(out / "log.npz"), "--out", str(tmp_path / "cli")]) == 0
 
 
 def test_live_loop_on_the_recorded_frames(run, tmp_path):

@@ -34,10 +34,37 @@ def bench_names() -> dict[str, object]:
     return {k: m for k, m in _bench_modules().items() if k != "all"}
 
 
+#: Quick settings for benchmarks that define neither ``QUICK_ARGS`` nor a ``--quick`` flag.
+QUICK_FALLBACK = {
+    "registration": ["--trials", "30"],
+    "robot": ["--ticks", "3000", "--rounds", "3"],
+    "tactile": ["--seconds", "1.5", "--repeats", "1"],
+    "world": ["--approaches", "20"],
+}
+
+
+def quick_args(name: str, mod) -> list[str]:
+    """The quick setting of one benchmark: its ``QUICK_ARGS``, else ``--quick`` if it has that flag,
+    else :data:`QUICK_FALLBACK` (only options the benchmark accepts), else nothing (its defaults)."""
+    import argparse
+
+    if hasattr(mod, "QUICK_ARGS"):
+        return list(mod.QUICK_ARGS)
+    p = argparse.ArgumentParser(add_help=False)
+    mod.add_arguments(p)
+    flags = {o for a in p._actions for o in a.option_strings}
+    if "--quick" in flags:
+        return ["--quick"]
+    extra = QUICK_FALLBACK.get(name, [])
+    if any(w.startswith("--") and w not in flags for w in extra):
+        return []
+    return list(extra)
+
+
 def _run_one(name: str, mod, out: Path, *, quick: bool, timeout: float) -> dict:
     sub = out / name
     sub.mkdir(parents=True, exist_ok=True)
-    extra = list(getattr(mod, "QUICK_ARGS", [])) if quick else []
+    extra = quick_args(name, mod) if quick else []
     cmd = [sys.executable, "-m", "vishap", "bench", name, "--out", str(sub), *extra]
     env = dict(os.environ)
     env.setdefault("PYOPENGL_PLATFORM", "egl")
