@@ -29,10 +29,8 @@ PAPER_REPORTS = {
 
 
 def make_tracker(cfg: TactileConfig, array: SensorArray | None = None) -> FeatureTracker:
-    c = cfg.classifier
-    return FeatureTracker(array or SensorArray(cfg.sensor), velocity_window_s=c.velocity_window_s,
-                          stable_window_s=c.stable_time_s, broad_area_m2=c.distributed_area_m2,
-                          min_force_n=c.min_force_n)
+    """Shorthand for :meth:`FeatureTracker.from_config`."""
+    return FeatureTracker.from_config(cfg, array)
 
 
 def _r(x, n=3):

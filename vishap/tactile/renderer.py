@@ -26,13 +26,12 @@ from vishap.tactile.allocation import allocate
 from vishap.tactile.classifier import ContactClassifier, ContactState
 from vishap.tactile.config import SurfaceAttributes, TactileConfig, load_tactile_config
 from vishap.tactile.contact import ContactSample
-from vishap.tactile.examples import make_tracker
 from vishap.tactile.feedforward import ContactPredictor
 from vishap.tactile.jnd import JNDQuantiser
 from vishap.tactile.phsm import phsm_targets
 from vishap.tactile.pins import PinRenderer, nonuniformity_map, weave_tile
 from vishap.tactile.regions import RegionController
-from vishap.tactile.sensor import SensorArray, SensorFrame, hertz_radius
+from vishap.tactile.sensor import FeatureTracker, SensorArray, SensorFrame, hertz_radius
 from vishap.tactile.synth import Oscillators
 
 __all__ = ["DriveBlock", "TactileRenderer"]
@@ -82,7 +81,7 @@ class TactileRenderer:
         self.fs = cfg.allocation.sample_rate_hz
         self.tick_s = 1.0 / cfg.pins.contact_rate_hz
         self.array = SensorArray(cfg.sensor)
-        self.tracker = make_tracker(cfg, self.array)
+        self.tracker = FeatureTracker.from_config(cfg, self.array)
         self.classifier = ContactClassifier(cfg.classifier)
         ff = cfg.feedforward if feedforward is None else cfg.feedforward.model_copy(update={"enabled": feedforward})
         self.predictor = ContactPredictor(ff, slip_speed_m_s=cfg.classifier.slip_speed_m_s)

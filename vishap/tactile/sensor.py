@@ -148,6 +148,13 @@ class FeatureTracker:
         self.floor_pa = min(3.0 * array.cfg.noise_pa, 0.5 * thr)
         self.reset()
 
+    @classmethod
+    def from_config(cls, cfg, array: SensorArray | None = None) -> FeatureTracker:
+        """A tracker with the windows and thresholds of a :class:`~vishap.tactile.config.TactileConfig`."""
+        c = cfg.classifier
+        return cls(array or SensorArray(cfg.sensor), velocity_window_s=c.velocity_window_s,
+                   stable_window_s=c.stable_time_s, broad_area_m2=c.distributed_area_m2, min_force_n=c.min_force_n)
+
     def reset(self) -> None:
         n = self.array.cfg.rows * self.array.cfg.cols
         self._xr = np.ascontiguousarray(self.array.x_m.ravel())
