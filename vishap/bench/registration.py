@@ -181,20 +181,24 @@ def _outlier_sweep(rng, trials, n, sigma_mm=0.5):
     fracs = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5]
     thr = 4.0 * sigma_mm * 1e-3  # ≈ the 99.9 % gate of a 3-D Gaussian
     methods = _robust(thr)
-    res = {name: {"map_rms_mm": [], "correct_fraction": [], "ratio_to_floor": []} for name in methods}
+    res = {name: {"map_rms_mm": [], "correct_fraction": [], "ratio_to_floor": [], "median_us": []} for name in methods}
     floors = []
     for frac in fracs:
         n_in = n - int(round(frac * n))
         floor = sigma_mm * math.sqrt(6.0 / n_in)
         floors.append(floor)
         errs = {name: [] for name in methods}
+        times = {name: [] for name in methods}
         for _ in range(trials):
             src, dst, clean, _, out = _pairs(rng, n, sigma_mm * 1e-3, frac)
             for name, f in methods.items():
+                t0 = time.perf_counter()
                 try:
-                    errs[name].append(_map_rms(f(src, dst), src[~out], clean[~out]) * 1e3)
+                    T = f(src, dst)
                 except Exception:
-                    errs[name].append(math.inf)
+                    T = np.full((4, 4), np.nan)
+                times[name].append(time.perf_counter() - t0)
+                errs[name].append(_map_rms(T, src[~out], clean[~out]) * 1e3)
         for name in methods:
             e = np.asarray(errs[name])
             fin = e[np.isfinite(e)]
@@ -202,8 +206,26 @@ def _outlier_sweep(rng, trials, n, sigma_mm=0.5):
             # "correct": within 3× the floor (a gross failure is far beyond it)
             res[name]["correct_fraction"].append(float(np.mean(e < 3 * floor)))
             res[name]["ratio_to_floor"].append(float(np.sqrt(np.mean(fin**2))) / floor if len(fin) else None)
+            res[name]["median_us"].append(median_us(np.asarray(times[name])))
     return {"outlier_fraction": fracs, "sigma_mm": sigma_mm, "points": n, "threshold_mm": thr * 1e3,
             "floor_mm": floors, "methods": res}
+
+
+def _points_sweep(rng, trials, sigma_mm=0.5):
+    """Error against the number of pairs N at fixed σ (the floor falls as 1/√N)."""
+    sizes = [3, 4, 6, 10, 20, 50, 200]
+    methods = {k: PLAIN[k] for k in ("ours (closed form)", "Open3D point-to-point", "OpenCV Umeyama (force_rotation)")}
+    res = {name: [] for name in methods}
+    for n in sizes:
+        errs = {name: [] for name in methods}
+        for _ in range(trials):
+            src, dst, clean, _, _ = _pairs(rng, n, sigma_mm * 1e-3)
+            for name, f in methods.items():
+                errs[name].append(_map_rms(f(src, dst), src, clean))
+        for name in methods:
+            res[name].append(float(np.sqrt(np.mean(np.square(errs[name])))) * 1e3)
+    return {"points": sizes, "sigma_mm": sigma_mm, "map_rms_mm": res,
+            "floor_mm": [sigma_mm * math.sqrt(min(6.0, 3.0 * n - 3.0) / n) for n in sizes]}
 
 
 def _speed(rng):
@@ -295,6 +317,40 @@ def _chart_outliers(r, path):
     save_figure(fig, path)
 
 
+def _chart_points(r, path):
+    fig, ax = new_figure(figsize=(6.4, 4.2))
+    for name, v in r["map_rms_mm"].items():
+        ax.plot(r["points"], v, marker="o", label=name, alpha=0.8)
+    ax.plot(r["points"], r["floor_mm"], "k--", label="floor")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("point pairs N")
+    ax.set_ylabel("mapping RMS error (mm)")
+    ax.set_title(f"σ = {r['sigma_mm']} mm")
+    ax.legend(fontsize=7)
+    save_figure(fig, path)
+
+
+def _chart_tradeoff(r, path):
+    """Speed (x) against accuracy (y), clean and with 30 % outliers (N = 40, σ = 0.5 mm)."""
+    fig, ax = new_figure(figsize=(10.5, 4.6))
+    fr = r["outlier_fraction"]
+    for name, v in r["methods"].items():
+        for k, (frac, mk) in enumerate(((0.0, "o"), (0.3, "^"))):
+            i = fr.index(frac)
+            ax.scatter(v["median_us"][i], v["map_rms_mm"][i], marker=mk, s=40,
+                       label=f"{name} ({int(frac * 100)} % outliers)", color=f"C{list(r['methods']).index(name)}")
+    for frac, ls in ((0.0, ":"), (0.3, "--")):
+        ax.axhline(r["floor_mm"][fr.index(frac)], color="k", ls=ls, lw=0.8)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("median time per estimate (µs)")
+    ax.set_ylabel("median mapping RMS error (mm)")
+    ax.set_title(f"speed vs accuracy, N = {r['points']}, σ = {r['sigma_mm']} mm (lines: floors)")
+    ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    save_figure(fig, path)
+
+
 def _chart_speed(r, path):
     fig, ax = new_figure(figsize=(6.4, 4.2))
     for name, v in r["median_us"].items():
@@ -358,11 +414,14 @@ def run(args: argparse.Namespace) -> dict:
     rng = np.random.default_rng(args.seed)
     noise = _noise_sweep(rng, args.trials, args.points)
     outliers = _outlier_sweep(rng, args.trials, max(args.points, 40))
+    points = _points_sweep(rng, args.trials)
     speed = _speed(rng)
     _chart_noise(noise, out / "registration_noise.png")
+    _chart_points(points, out / "registration_points.png")
+    _chart_tradeoff(outliers, out / "registration_tradeoff.png")
     _chart_outliers(outliers, out / "registration_outliers.png")
     _chart_speed(speed, out / "registration_speed.png")
-    rec = {"machine": machine_info(), "noise": noise, "outliers": outliers, "speed": speed}
+    rec = {"machine": machine_info(), "noise": noise, "points": points, "outliers": outliers, "speed": speed}
     i = noise["sigma_mm"].index(0.5)
     rec["goal_noise_floor_at_0p5mm"] = {name: v[i] for name, v in noise["ratio_to_floor"].items()}
     rec["goal_correct_at_30pct_outliers"] = {name: v["correct_fraction"][outliers["outlier_fraction"].index(0.3)]
