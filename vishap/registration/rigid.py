@@ -140,21 +140,18 @@ def kabsch_umeyama(p_src: np.ndarray, p_dst: np.ndarray, w: np.ndarray) -> tuple
     Works on a batch too: ``p_src``/``p_dst`` of shape (..., N, 3), ``w`` (..., N).
     """
     wsum = np.sum(w, axis=-1, keepdims=True)
-    mu_s = np.einsum("...n,...nk->...k", w, p_src) / wsum
-    mu_d = np.einsum("...n,...nk->...k", w, p_dst) / wsum
+    mu_s = (w[..., None, :] @ p_src)[..., 0, :] / wsum
+    mu_d = (w[..., None, :] @ p_dst)[..., 0, :] / wsum
     a = p_src - mu_s[..., None, :]
     b = p_dst - mu_d[..., None, :]
-    H = np.einsum("...n,...ni,...nj->...ij", w, a, b)  # Σ w a bᵀ
+    H = np.swapaxes(a * w[..., None], -1, -2) @ b  # Σ w a bᵀ
     U, _, Vt = np.linalg.svd(H)
     V = np.swapaxes(Vt, -1, -2)
     d = np.sign(np.linalg.det(V @ np.swapaxes(U, -1, -2)))
     d = np.where(d == 0, 1.0, d)
-    D = np.zeros(H.shape)
-    D[..., 0, 0] = 1.0
-    D[..., 1, 1] = 1.0
-    D[..., 2, 2] = d
-    R = V @ D @ np.swapaxes(U, -1, -2)
-    t = mu_d - np.einsum("...ij,...j->...i", R, mu_s)
+    V = V * np.stack([np.ones_like(d), np.ones_like(d), d], axis=-1)[..., None, :]
+    R = V @ np.swapaxes(U, -1, -2)
+    t = mu_d - (R @ mu_s[..., None])[..., 0]
     return R, t
 
 
@@ -255,14 +252,17 @@ class RigidTransform:
             # skip near-collinear samples (their rotation about the line is arbitrary)
             e1 = src[idx[:, 1]] - src[idx[:, 0]]
             e2 = src[idx[:, 2]] - src[idx[:, 0]]
-            area = np.linalg.norm(np.cross(e1, e2), axis=1)
-            idx = idx[area > 1e-6 * np.maximum(np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e2, e2))]
+            cx = e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]
+            cy = e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]
+            cz = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+            area2 = cx * cx + cy * cy + cz * cz
+            idx = idx[area2 > 1e-12 * np.maximum(np.sum(e1 * e1, axis=1), np.sum(e2 * e2, axis=1)) ** 2]
             if len(idx) == 0:
                 if n == 3:
                     break
                 continue
             Rs, ts = kabsch_umeyama(src[idx], dst[idx], np.ones(idx.shape))
-            r2 = np.sum((np.einsum("kij,nj->kni", Rs, s_src) + ts[:, None, :] - s_dst) ** 2, axis=-1)
+            r2 = np.sum((s_src @ np.swapaxes(Rs, -1, -2) + ts[:, None, :] - s_dst) ** 2, axis=-1)
             # least median of squares, or MSAC (truncated squares) with a threshold
             scores = np.median(r2, axis=1) if threshold is None else np.minimum(r2, threshold**2).sum(axis=1)
             k = int(np.argmin(scores))
