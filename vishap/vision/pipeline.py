@@ -38,6 +38,8 @@ class PipelineConfig:
     z_search_m: tuple[float, ...] = (0.45, 0.8)  # other depths tried when a full-frame search fails
     finger_radius_m: float = 0.008  # radius of the fingertip's cap (picks the index tip among candidates)
     max_candidates: int = 4         # fingertip candidates per view in a full-frame search
+    acquire_radius_band: tuple[float, float] = (0.75, 1.06)  # cap radius / finger_radius_m accepted when
+    #   (re)acquiring over the full frame; measured on renders: index tip 5–95 % 0.75–1.04, thumb/knuckles median 1.07
     learn_frames: int = 10
     recheck_frames: int = 15        # while tracking, search the full frame every this many frames (0: never)
     colour_refine: bool = False     # cap fit on colour unmixed against the background (measured worse on shaded renders)
@@ -154,8 +156,8 @@ class VisionPipeline:
         A view in tracked mode offers its one candidate (nearest the prediction); a view searched
         over the full frame offers several, ranked by the detector (score, then extremity: index
         tip before thumb and curled knuckles). A pair must pass the epipolar and disparity checks
-        and its fitted cap radii, scaled by the triangulated depth, must be within 0.5–1.6 of
-        ``finger_radius_m``; the pair with the lowest rank sum wins (ties: the larger extremity).
+        and its fitted cap radii, scaled by the triangulated depth, must be within
+        ``acquire_radius_band`` of ``finger_radius_m`` (0.5–1.6 when both views are tracked); the pair with the lowest rank sum wins (ties: the larger extremity).
         """
         cfg = self.config
         L, R = cands["left"], cands["right"]
@@ -170,7 +172,8 @@ class VisionPipeline:
                     continue
                 z = sp.p_cam[2]
                 ratio = [tip.cap_radius_px * z / f / cfg.finger_radius_m for tip in (tl, tr) if tip.cap_radius_px > 0]
-                if any(not (0.5 <= q <= 1.6) for q in ratio):
+                lo, hi = (0.5, 1.6) if modes["left"] == modes["right"] == "tracked" else cfg.acquire_radius_band
+                if any(not (lo <= q <= hi) for q in ratio):
                     reason = "cap radius not a fingertip's"
                     continue
                 cost = il + ir - (tl.extremity_px + tr.extremity_px) / (1.0 + tl.extremity_px + tr.extremity_px) \
