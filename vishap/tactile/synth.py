@@ -92,7 +92,7 @@ def trace_arrays(trace: list[dict]) -> dict[str, np.ndarray]:
 
 
 def resynthesize(tracks: dict[str, np.ndarray], fs: float, carrier_hz=(40.0, 320.0), *,
-                 chunk_ticks: int = 256) -> dict[str, np.ndarray]:
+                 chunk_ticks: int = 512) -> dict[str, np.ndarray]:
     """Render control tracks (:func:`trace_arrays`) vectorised, in cache-sized chunks of ticks.
 
     Gives the same glove (N,), regions (3, N) and pins (24, N) signals as the tick-by-tick
@@ -118,6 +118,7 @@ def resynthesize(tracks: dict[str, np.ndarray], fs: float, carrier_hz=(40.0, 320
     out_g = np.empty(T * n)
     out_r = np.empty((3, T * n))
     out_p = np.empty((P, T * n), dtype=np.float32)
+    r32 = (np.arange(1, n + 1, dtype=np.float32) / np.float32(n))[None, :]
     phase = np.zeros(6)
     prev_a = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
     prev_phi, prev_p, prev_gs = np.zeros(6), np.zeros(2 * P, dtype=np.float32), np.zeros(1)
@@ -126,12 +127,16 @@ def resynthesize(tracks: dict[str, np.ndarray], fs: float, carrier_hz=(40.0, 320
         sl = slice(a * n, b * n)
         y, phase = synthesize(fs, n, phase, freq[a:b], prev_a, amp[a:b], prev_phi, phi[a:b])
         out_r[:, sl] = y[:3]
-        amps = ramp(prev_p, pin_amp[a:b], n)  # (2P, m·n) float32
-        c = y[3:5].astype(np.float32)
-        blk = out_p[:, sl]
-        np.multiply(amps[:P], c[0], out=blk)
-        amps[P:] *= c[1]
-        blk += amps[P:]
+        # per tick: pins (P, n) = [a40_prev, Δa40, a320_prev, Δa320] (P, 4) @ [c40, r·c40, c320, r·c320] (4, n)
+        m = b - a
+        cur = pin_amp[a:b]
+        prv = np.vstack([prev_p[None, :], cur[:-1]])
+        d = cur - prv
+        A = np.stack([prv[:, :P], d[:, :P], prv[:, P:], d[:, P:]], axis=2)  # (m, P, 4)
+        c40 = y[3].astype(np.float32).reshape(m, n)
+        c320 = y[4].astype(np.float32).reshape(m, n)
+        B = np.stack([c40, c40 * r32, c320, c320 * r32], axis=1)  # (m, 4, n)
+        out_p[:, sl] = np.matmul(A, B).transpose(1, 0, 2).reshape(P, -1)
         out_g[sl] = ramp(prev_gs, g_sup[a:b], n)[0] + y[5]
         prev_a, prev_phi, prev_p, prev_gs = amp[b - 1], phi[b - 1], pin_amp[b - 1], g_sup[b - 1]
     for x in (out_g, out_r, out_p):
