@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from vishap.robot.controller import Controller
+from vishap.robot.kinematics import tip_state_scalar
 from vishap.robot.params import DEFAULT, WORKSPACE_MAX, WORKSPACE_MIN
 from vishap.robot.plant import MujocoPlant
 from vishap.robot.servo import ServoLoop
@@ -42,8 +43,8 @@ class DeviceServo:
         self._out = np.zeros(STATE_SIZE)
         self._action_code = {a: i for i, a in enumerate(ACTIONS)}
         self._fault_code = {f: i + 1 for i, f in enumerate(Fault)}
-        self._site_xpos = device.data.site_xpos
-        self._tip = device._site_tip
+        self._read = device.read_scalar
+        self._l1, self._l2 = device.params.l1, device.params.l2
 
     def step(self, t: float, record) -> np.ndarray:
         x, y, z, made_at, conf, calibrated = record.tolist() if hasattr(record, "tolist") else record
@@ -57,7 +58,8 @@ class DeviceServo:
             out[4] = self._action_code[action]
             out[5] = 0.0 if fault is None else self._fault_code[fault]
         out[0] = t
-        out[1:4] = self._site_xpos[self._tip]
+        # tip from the device's own joint readings (any Device, not only the MuJoCo plant)
+        out[1:4] = tip_state_scalar(*self._read(), self._l1, self._l2)[:3]
         return out
 
 
