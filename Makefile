@@ -15,13 +15,14 @@ $(VENV)/.installed: pyproject.toml constraints.txt scripts/setup-system.sh
 	touch $@
 
 demo: setup
-	$(VENV)/bin/vishap rig new --out $(OUT)/demo/rig.yaml
+	$(VENV)/bin/vishap demo wall --out $(OUT)/demo/wall
+	@echo "wall demo written to $(OUT)/demo/wall (summary.json, demo.mp4, force_depth.png, log.npz)"
 
 test: setup
 	$(PY) -m pytest -q -n 2
 
 bench: setup
-	$(VENV)/bin/vishap bench --help
+	$(VENV)/bin/vishap bench all --out $(OUT)/bench
 
 clean:
 	rm -rf $(OUT) .pytest_cache
