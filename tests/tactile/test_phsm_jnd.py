@@ -45,4 +45,5 @@ def test_jnd_suppresses_imperceptible_changes():
     amps = 0.5 + 0.01 * np.sin(np.linspace(0, 6, 200))
     sent = [q.update([a, a, a], [10, 100, 300]).any() for a in amps]
     assert sum(sent) == 1 and q.saved_fraction > 0.99
+    assert q.changed == 3 * 200 and q.saved_vs_change_only == pytest.approx(1 - 3 / 600)
     assert q.update([0.9, 0.9, 0.9], [10, 100, 300]).all()

@@ -4,7 +4,9 @@ Each band has a Weber fraction for amplitude and for frequency (``bands[*].weber
 config). A new target is sent to the actuators only when it differs from the last *sent* one by
 at least one just-noticeable difference — |ΔA| ≥ w_A·max(A_sent, A_det) or |Δf| ≥ w_f·f_sent — or
 when it crosses the band's detection threshold (switching on/off). Otherwise the previous command
-stands. ``sent`` and ``offered`` count updates, so the saving is ``1 − sent/offered``.
+stands. ``offered`` counts targets (one per band per tick), ``changed`` those that differ at all from
+the previous offer, ``sent`` the commands that go out: the saving is ``1 − sent/offered`` against
+streaming every tick and ``1 − sent/changed`` against a change-only sender.
 """
 from __future__ import annotations
 
@@ -40,11 +42,19 @@ class JNDQuantiser:
         self.amplitude = np.zeros(n)
         self.frequency = np.array([max(b.low_hz, 1.0) for b in self.bands])
         self.offered = 0
+        self.changed = 0  # offers that differ at all from the previous offer (a change-only sender's updates)
         self.sent = 0
+        self._last_offer = np.full((len(self.bands), 2), np.nan)
 
     @property
     def saved_fraction(self) -> float:
+        """Updates saved against sending every offer (one per band per control tick)."""
         return 1.0 - self.sent / self.offered if self.offered else 0.0
+
+    @property
+    def saved_vs_change_only(self) -> float:
+        """Updates saved against sending every offer that changed at all."""
+        return 1.0 - self.sent / self.changed if self.changed else 0.0
 
     def update(self, amplitudes, frequencies) -> np.ndarray:
         """Offer new per-band targets; return a bool mask of the bands whose command changed."""
@@ -52,6 +62,10 @@ class JNDQuantiser:
         for i, b in enumerate(self.bands):
             a, f = float(amplitudes[i]), float(frequencies[i])
             self.offered += 1
+            last = self._last_offer[i]
+            if not (last[0] == a and last[1] == f):
+                self.changed += 1
+                last[0], last[1] = a, f
             if jnd_changed(a, f, self.amplitude[i], self.frequency[i], b):
                 self.amplitude[i] = a if a >= b.detection_threshold else 0.0
                 self.frequency[i] = f
