@@ -169,3 +169,14 @@ def test_prearm_is_held_until_the_sensor_confirms_but_never_started_by_touch():
     assert held.prearm and held.time_to_contact_s == 0.0
     assert not p.update(ContactSample(0.002, [0, 0, 0], 0.1, [0, 0, 0], True), confirmed=True).prearm
     assert p.false_prearms == 0 and p.prearms == 1
+
+
+def test_time_going_back_restarts_the_renderer():
+    r = TactileRenderer(CFG)
+    samples = press(0.2)
+    for s in samples:
+        r.step(s)
+    b = None
+    for s in samples[:60]:
+        b = r.step(s)
+    assert b.n == 10 and np.abs(b.regions).max() > 0

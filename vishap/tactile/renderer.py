@@ -162,6 +162,8 @@ class TactileRenderer:
         cfg, t = self.cfg, float(sample.t)
         if not (np.isfinite(sample.position).all() and np.isfinite(sample.velocity).all()):
             sample = ContactSample(t, np.nan_to_num(sample.position), 0.0, np.zeros(3), False)
+        if self.clock is not None and t + self.tick_s < self.clock - 0.05:
+            self.reset()  # time went back (a replay restarted): start afresh rather than stay silent
         if self.clock is None:
             self.clock = t
         n = int(round((t + self.tick_s - self.clock) * self.fs))
