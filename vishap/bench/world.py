@@ -38,7 +38,7 @@ POLICIES = [
 
 def add_arguments(p) -> None:
     p.add_argument("--approaches", type=int, default=20, help="approaches per scene (default 20)")
-    p.add_argument("--policy-approaches", type=int, default=20, help="approaches per policy (wall scene)")
+    p.add_argument("--policy-approaches", type=int, default=40, help="approaches per policy (wall scene)")
     p.add_argument("--scenes", default="wall,button,fabric,panel", help="comma-separated scenes")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--rate-hz", type=float, default=30.0, help="fingertip sample rate")
