@@ -52,3 +52,18 @@ def test_cli_track_eval_and_skin(toy_sequences, tmp_path, capsys):
               "detection_rate", "ms_per_pair"):
         assert out[k] is not None
     assert main(["track", str(tmp_path / "missing"), "--out", str(tmp_path / "x.json")]) == 2
+
+
+def test_synth_folder_source_counts_a_corrupt_frame(toy_sequences, tmp_path):
+    import shutil
+
+    from vishap.vision.capture import SynthFolderSource, open_source
+
+    folder = tmp_path / "seq"
+    shutil.copytree(toy_sequences / "s1", folder)
+    (folder / "right" / "000003.png").write_bytes(b"broken")
+    src = open_source(folder)
+    assert isinstance(src, SynthFolderSource) and src.rig.image_size == (320, 240)
+    frames = list(src)
+    assert len(frames) == 15 and src.stats.delivered == 15
+    assert src.stats.dropped + src.stats.mismatched == 1

@@ -39,15 +39,9 @@ def _run(args: argparse.Namespace) -> int:
         rig = StereoRig.load(src / "rig.yaml")
     else:
         raise VisionError(f"{args.source}: --rig is required for videos and cameras")
-    if src.is_dir():
-        from vishap.vision.evaluate import open_sequence
-
-        frames = (open_sequence(src)[i] for i in range(len(open_sequence(src))))
-        stats = None
-    else:
-        source = open_source(args.source, max_frames=args.max_frames) if args.source.startswith(("cam:", "sbs-cam:")) \
-            else open_source(args.source)
-        frames, stats = iter(source), source.stats
+    source = open_source(args.source, max_frames=args.max_frames) if args.source.startswith(("cam:", "sbs-cam:")) \
+        else open_source(args.source)
+    frames, stats = iter(source), source.stats
     pipe = VisionPipeline(rig, skin_model=SkinModel.load(args.skin) if args.skin else None,
                           config=PipelineConfig(tracking=not args.full_frame))
     rows = []

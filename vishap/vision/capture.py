@@ -143,17 +143,15 @@ class ArraySource(StereoSource):
 
 
 class SynthFolderSource(StereoSource):
-    """A folder written by ``vishap synth`` (read through :mod:`vishap.sim.reader`)."""
+    """A folder written by ``vishap synth`` (read through :mod:`vishap.sim.reader` when available)."""
 
     def __init__(self, folder: str | os.PathLike, **kw):
         super().__init__(**kw)
-        try:
-            from vishap.sim.reader import SyntheticSequence
-        except ImportError as exc:  # pragma: no cover - depends on the synth package
-            raise VisionError(f"{folder}: reading synthetic sequences needs vishap.sim ({exc})") from None
+        from vishap.vision.evaluate import open_sequence  # vishap.sim.reader, or the layout reader
+
         self.folder = Path(folder)
         self.name = str(folder)
-        self.sequence = SyntheticSequence(folder)
+        self.sequence = open_sequence(folder)
         self.rig = self.sequence.rig
 
     def __len__(self) -> int:
