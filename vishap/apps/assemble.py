@@ -111,7 +111,7 @@ def build(cfg: DemoConfig, out: Path) -> Stages:
     st.contact_sample = lambda t, pad, v_pad, F_on_finger: _contact_sample(obj, t, pad, v_pad, F_on_finger)
     st.pad_force = _pad_force(obj, st.face_half_extent)
     st.tactile_state = tactile_step_state
-    st.overlay = lambda pair, row, dev, target, t: _overlay(st, pair, row, dev, target, t)
+    st.overlay = lambda pair, row, dev, target, t, extra=(): _overlay(st, pair, row, dev, target, t, extra)
     return st
 
 
@@ -170,14 +170,14 @@ def _build_tactile(cfg: DemoConfig, scene):
     return renderer, state
 
 
-def _overlay(st, pair, row, dev, target, t):
+def _overlay(st, pair, row, dev, target, t, extra=()):
     from vishap.apps.overlay import draw_overlay, object_outline_robot
 
     T_cam_robot = invert(st.T_est) if st.T_est is not None else st.T_cam_robot_true
     outlines = [object_outline_robot(o.centre, o.normal, 2.0 * np.asarray(o.half[:2], float)) for o in st.scene.objects]
     X = target["X_d"]
     lines = [f"{st.cfg.scene}  t={t:6.3f}s  frame {row['index']}",
-             "tip: " + ("found" if row["found"] else ("DROPPED" if row["dropped"] else "not found"))]
+             "tip: " + ("found" if row["found"] else ("frame DROPPED" if row["dropped"] else "not found")), *extra]
     return draw_overlay(pair.left, pair.right, rig=st.rig, T_cam_robot=T_cam_robot,
                         tip_uv=(row["uv_left"] if row["found"] else None, row["uv_right"] if row["found"] else None),
                         device_points_robot=np.vstack([st.kin.link_points(dev.q), dev.p_robot + st.mount_offset]),

@@ -49,7 +49,10 @@ class SignalLog:
         self.channels: dict[str, Channel] = {}
 
     def channel(self, name: str) -> Channel:
-        return self.channels.setdefault(name, Channel())
+        ch = self.channels.get(name)
+        if ch is None:
+            ch = self.channels[name] = Channel()
+        return ch
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {"meta": np.array(json.dumps(self.meta, default=_json_default))}

@@ -140,7 +140,9 @@ class Demo:
         self.log.channel("vision").append(**row)
         if self.video is not None:
             c3 = time.perf_counter()
-            self.video.write(st.overlay(pair, row, dev, self.target, t))
+            f = 0.0 if self.contact is None else float(np.linalg.norm(self.contact[0]))
+            extra = [f"device: {self.last_action}   contact force {f:4.2f} N"]
+            self.video.write(st.overlay(pair, row, dev, self.target, t, extra))
             self.wall["io"] += time.perf_counter() - c3
         if self.progress and (k % 10 == 0 or k == self.cfg.frames - 1):
             print(f"\rdemo {self.cfg.scene}: frame {k + 1}/{self.cfg.frames}", end="", file=sys.stderr, flush=True)

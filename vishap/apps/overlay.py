@@ -82,7 +82,8 @@ def draw_overlay(left, right, *, rig, T_cam_robot, tip_uv=(None, None), device_p
     fs = 0.35 * scale
     for k, text in enumerate(lines):
         y = int((12 + 12 * k) * scale)
-        cv2.putText(out, text, (4, y), cv2.FONT_HERSHEY_SIMPLEX, fs, (0, 0, 0), 2, cv2.LINE_AA)
+        (w, h), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, fs, 1)
+        cv2.rectangle(out, (2, y - h - 2), (6 + w, y + base), (0, 0, 0), -1)
         cv2.putText(out, text, (4, y), cv2.FONT_HERSHEY_SIMPLEX, fs, (255, 255, 255), 1, cv2.LINE_AA)
     return out
 

@@ -51,9 +51,10 @@ def plot_timeline(path, servo: dict, vision: dict, *, title: str, normal=(0.0, 0
     a2.plot(t, servo["F_contact"] @ n, "m-", lw=1, label="contact force on finger (N)")
     a2.plot(t, np.linalg.norm(servo["F_cmd"], axis=1), "c-", lw=0.8, label="|device command| (N)")
     guard = servo.get("guard")
-    if guard is not None and np.any(guard):
-        a2.fill_between(t, 0, np.max(np.abs(servo["F_cmd"])) + 0.1, where=guard > 0, color="orange",
-                        alpha=0.25, label="hold / retreat")
+    if guard is not None and np.any((guard == 1) | (guard == 2)):
+        top = float(np.max(np.abs(servo["F_cmd"]))) + 0.1
+        a2.fill_between(t, 0, top, where=guard == 1, color="orange", alpha=0.25, label="hold")
+        a2.fill_between(t, 0, top, where=guard == 2, color="red", alpha=0.2, label="retreat")
     a2.set_xlabel("time (s)")
     a2.set_ylabel("N")
     a2.legend(fontsize=7)
