@@ -93,6 +93,8 @@ def test_rules_and_hold():
     assert classify_features(feat(0, broad_for_s=0.2, **broad), c) == ContactState.CONCENTRATED
     assert classify_features(feat(0, broad_for_s=0.3, **broad), c) == ContactState.DISTRIBUTED
     assert classify_features(feat(0, broad_for_s=0.3, force_cv=0.4, **broad), c) == ContactState.CONCENTRATED
+    firm = dict(area_m2=1.1e-4, engaged=18, total_force_n=2.0)  # 18 kPa mean: a firm fingertip press
+    assert classify_features(feat(0, broad_for_s=0.5, **firm), c) == ContactState.CONCENTRATED
     clf = ContactClassifier(c)
     assert clf.update(feat(0.0)) == ContactState.CONCENTRATED  # first contact is reported at once
     fast = dict(centroid_velocity_m_s=np.array([0.3, 0]), pulse_s=0.02)

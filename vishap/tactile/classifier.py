@@ -6,8 +6,10 @@ The rules, in order (parameters in ``classifier`` of ``tactile.yaml``):
 2. slip — centroid speed above ``slip_speed_m_s`` (15 cm/s) *and* local pulses shorter than
    ``slip_pulse_max_s`` (100 ms);
 3. distributed — broad area (≥ ``distributed_area_m2``) held, with stable pressure (coefficient of
-   variation of the total force ≤ ``stable_force_cv``), for more than ``stable_time_s`` (250 ms);
-4. concentrated — otherwise: a small area (or a broad one not yet stable) carrying the pressure peak.
+   variation of the total force ≤ ``stable_force_cv``), for more than ``stable_time_s`` (250 ms), and
+   a moderate mean pressure (below ``concentrated_pressure_pa``);
+4. concentrated — otherwise: a small area, a broad one not yet stable, or a firm press whose high
+   local pressure marks it as concentrated even when its patch is broad.
 
 :func:`classify_features` is the pure rule; :class:`ContactClassifier` adds a short hold so that a
 state must persist ``hold_s`` before it is reported (no chattering at a rule's boundary).
@@ -37,7 +39,8 @@ def classify_features(f: ContactFeatures, cfg: ClassifierConfig) -> ContactState
         return ContactState.NONE
     if f.speed_m_s > cfg.slip_speed_m_s and f.pulse_s < cfg.slip_pulse_max_s:
         return ContactState.SLIP
-    if f.area_m2 >= cfg.distributed_area_m2 and f.broad_for_s >= cfg.stable_time_s and f.force_cv <= cfg.stable_force_cv:
+    if (f.area_m2 >= cfg.distributed_area_m2 and f.broad_for_s >= cfg.stable_time_s
+            and f.force_cv <= cfg.stable_force_cv and f.mean_pressure_pa < cfg.concentrated_pressure_pa):
         return ContactState.DISTRIBUTED
     return ContactState.CONCENTRATED
 

@@ -91,7 +91,8 @@ class ClassifierConfig(Schema):
     distributed_area_m2: float = Field(gt=0.0, description="area from which a contact is broad")
     stable_time_s: float = Field(gt=0.0)
     stable_force_cv: float = Field(gt=0.0, lt=1.0, description="max coefficient of variation of force")
-    concentrated_peak_pa: float = Field(gt=0.0, description="peak pressure reported as a high peak")
+    concentrated_pressure_pa: float = Field(gt=0.0, description="mean contact pressure from which even a broad, "
+                                            "stable contact counts as concentrated (high local pressure)")
     min_force_n: float = Field(gt=0.0, description="total force below which there is no contact")
     velocity_window_s: float = Field(gt=0.0, description="centroid-velocity regression window")
     hold_s: float = Field(ge=0.0, description="a new state must persist this long before switching")

@@ -128,6 +128,11 @@ class ContactFeatures:
     broad_for_s: float
 
     @property
+    def mean_pressure_pa(self) -> float:
+        """Mean pressure over the engaged area (0 without contact)."""
+        return self.total_force_n / self.area_m2 if self.area_m2 > 0 else 0.0
+
+    @property
     def speed_m_s(self) -> float:
         return float(np.hypot(*self.centroid_velocity_m_s))
 

@@ -94,7 +94,8 @@ def labelled_sequence(label: ContactState, rng: np.random.Generator, *, duration
 
     concentrated: fingertip press near R1 (area 0.2–0.65 cm², 0.3–1.0 N), slow drift ≤ 3 cm/s, force
     wobble ±15 %; one in three is a firm tapping press (3–6 Hz, peaks to 1.6–2.2 N, so the patch briefly
-    exceeds the broad-area threshold without ever being stable). distributed: pad stroke near R2
+    exceeds the broad-area threshold without ever being stable) and one in six a firm steady press
+    (1.8–2.5 N, Hertz patch ≥ 1 cm², 15–25 kPa). distributed: pad stroke near R2
     (area 1.4–2.2 cm², mean pressure 2.8–4.5 kPa) stroking back and forth at 1–3 Hz with peak speed up
     to 14 cm/s and ±4 % force wobble. slip: edge sweep from R3 towards R1 at 18–35 cm/s, oblique, with
     ±20 % pressure pulses.
@@ -128,7 +129,12 @@ def labelled_sequence(label: ContactState, rng: np.random.Generator, *, duration
         aspect = rng.uniform(1.0, 1.3)
         f = rng.uniform(0.3, 1.0)
         wob = 0.15
-        tapping = rng.uniform() < 1 / 3
+        kind = rng.uniform()
+        tapping = kind < 1 / 3
+        if kind > 5 / 6:  # firm steady press: the Hertz patch grows past the broad-area threshold
+            f = rng.uniform(1.8, 2.5)
+            area = 0.5e-4 * (f / 0.65) ** (2 / 3)
+            wob = 0.04
     elif label == ContactState.DISTRIBUTED:
         c0 = np.array([rng.uniform(0.045, 0.055), rng.uniform(-0.001, 0.001)])
         drift = rng.uniform(0.0, 0.14)
