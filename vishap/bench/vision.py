@@ -267,22 +267,24 @@ def run(args: argparse.Namespace) -> dict:
 def _chart(record, path):
     fig, axes = new_figure(2, 2, figsize=(13, 9))
     (a1, a2), (a3, a4) = axes
+    multi = len(record["sequences"]) > 1
     for sname, rec in record["sequences"].items():
+        tag = f"{sname}: " if multi else ""
         for name, r in rec["segmentation"].items():
             mk = {"variant": "o", "backend": "s", "peer": "^"}[r["kind"]]
             a1.scatter(r["ms_per_image"], 100 * r["seg_correct"], marker=mk)
-            a1.annotate(f"{name}", (r["ms_per_image"], 100 * r["seg_correct"]), fontsize=7)
+            a1.annotate(f"{tag}{name}", (r["ms_per_image"], 100 * r["seg_correct"]), fontsize=7)
         for name, r in rec["pipeline"].items():
             if r["ms_per_pair"] is not None and r["tip3d_rms_mm"] is not None:
                 a2.scatter(r["ms_per_pair"], r["tip3d_rms_mm"])
-                a2.annotate(f"{name} (det {r['detection_rate']:.2f})", (r["ms_per_pair"], r["tip3d_rms_mm"]), fontsize=7)
+                a2.annotate(f"{tag}{name} (det {r['detection_rate']:.2f})", (r["ms_per_pair"], r["tip3d_rms_mm"]), fontsize=7)
         for name, r in rec["stereo"].items():
             if isinstance(r, dict) and r.get("tip3d_rms_mm") is not None:
                 a3.scatter(r["ms_per_pair"], r["tip3d_rms_mm"])
-                a3.annotate(f"{name} (valid {r['valid_fraction']:.2f})", (r["ms_per_pair"], r["tip3d_rms_mm"]), fontsize=7)
+                a3.annotate(f"{tag}{name} (valid {r['valid_fraction']:.2f})", (r["ms_per_pair"], r["tip3d_rms_mm"]), fontsize=7)
         for name, r in rec["kalman"].items():
             a4.scatter(max(r["us_per_step"], 0.1), r["rms_px"])
-            a4.annotate(name, (max(r["us_per_step"], 0.1), r["rms_px"]), fontsize=7)
+            a4.annotate(tag + name, (max(r["us_per_step"], 0.1), r["rms_px"]), fontsize=7)
     a1.set(xscale="log", xlabel="ms per 640×480 image (median)", ylabel="segmentation correct, %",
            title="Segmentation: variants, torch backend (■), OpenCV subtractors (▲)")
     a2.set(xlabel="ms per stereo pair (median)", ylabel="tip 3-D RMS, mm", title="Pipeline modes")

@@ -192,12 +192,13 @@ def fit_circle(pts: np.ndarray) -> tuple[np.ndarray, float] | None:
     q = pts - m
     u, v = q[:, 0], q[:, 1]
     b = u * u + v * v
-    A = np.array([[u @ u, u @ v, 0.0], [u @ v, v @ v, 0.0], [0.0, 0.0, float(n)]])
-    rhs = np.array([u @ b, v @ b, b.sum()])
-    try:
-        sol = np.linalg.solve(A, rhs)
-    except np.linalg.LinAlgError:
+    # normal equations of [u v 1]·[a b c] = u²+v²: the 1-column decouples (Σu = Σv = 0)
+    suu, suv, svv = u @ u, u @ v, v @ v
+    det = suu * svv - suv * suv
+    if not det > 1e-12 * max(suu * svv, 1e-300):
         return None
+    bu, bv = u @ b, v @ b
+    sol = np.array([(svv * bu - suv * bv) / det, (suu * bv - suv * bu) / det, b.sum() / n])
     c = sol[:2] / 2
     rad2 = sol[2] + c @ c
     if not np.isfinite(rad2) or rad2 <= 0:
