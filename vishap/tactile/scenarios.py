@@ -64,7 +64,7 @@ def stroke(duration_s: float = 1.5, *, v_max_m_s: float = 0.3, force_n: float = 
     z = np.full_like(t, -0.01)
     z[t < 0.05] = 0.002 - 0.04 * t[t < 0.05]
     vz = np.where(t < 0.05, -0.04, 0.0)
-    u = np.clip((t - 0.15) / (duration_s - 0.3), 0.0, 1.0)
+    u = np.clip((t - 0.15) / max(duration_s - 0.3, 0.05), 0.0, 1.0)
     vx = v_max_m_s * np.sin(np.pi * u) ** 2
     x = np.concatenate([[0.0], np.cumsum(vx[:-1]) * DT]) - 0.05
     return _samples(t, z, vz, x, vx, force_n)
