@@ -180,3 +180,17 @@ def test_time_going_back_restarts_the_renderer():
     for s in samples[:60]:
         b = r.step(s)
     assert b.n == 10 and np.abs(b.regions).max() > 0
+
+
+def test_contact_sample_shapes_and_the_literal_kernel():
+    from vishap._core.errors import ShapeError
+
+    with pytest.raises(ShapeError, match="position"):
+        ContactSample(0.0, [0, 0], 0.1, [0, 0, 0], True)
+    with pytest.raises(ShapeError, match="pad_position"):
+        ContactSample(0.0, [0, 0, 0], 0.1, [0, 0, 0], True, pad_position=[1, 2, 3])
+    cfg = CFG.model_copy(update={"control": CFG.control.model_copy(update={"spatial_kernel": "paper"})})
+    r = TactileRenderer(cfg)
+    out = r.render(press(0.2), record=False)
+    # literally, R1's factor vanishes at its own centre (x = mu1) and the others take over
+    assert np.abs(out.regions[0]).max() < 1e-9 and np.abs(out.regions[1:]).max() > 0

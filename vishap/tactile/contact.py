@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vishap._core.check import as_array
+
 __all__ = ["ContactSample"]
 
 
@@ -39,13 +41,13 @@ class ContactSample:
     contact_radius_m: np.ndarray | None = field(default=None)
 
     def __post_init__(self):
+        # shapes are checked here; non-finite values are allowed and rendered as "no contact"
         for name in ("position", "velocity"):
-            v = np.asarray(getattr(self, name), dtype=np.float64).reshape(3)
-            object.__setattr__(self, name, v)
+            object.__setattr__(self, name, as_array(getattr(self, name), (3,), name, finite=False))
         for name in ("pad_position", "contact_radius_m"):
             v = getattr(self, name)
             if v is not None:
-                object.__setattr__(self, name, np.asarray(v, dtype=np.float64).reshape(2))
+                object.__setattr__(self, name, as_array(v, (2,), name, finite=False))
 
     @property
     def tangential_speed(self) -> float:
