@@ -216,6 +216,8 @@ class PathExtrapolator:
         coef, *_ = np.linalg.lstsq(X, q[:, :2], rcond=None)
         lev = float(np.linalg.inv(X.T @ X)[-1, -1])
         uv = coef[-1]
+        if np.hypot(*(uv - q[-1, :2])) > max(2.0 * h[-1], 0.005):
+            return None  # implausible: further sideways than twice the height still to cover
         # noise through the fit's leverage, plus a model error growing with the height still to cover
         var = self.var_meas * lev + (self.model_error * h[-1]) ** 2
         return centre + R_robot_obj[:, 0] * uv[0] + R_robot_obj[:, 1] * uv[1], var
