@@ -54,8 +54,7 @@ def onset_gain(cfg: TactileConfig, speeds=(0.05, 0.1, 0.15, 0.2, 0.3), decels=(0
             "median_feedforward_ms": float(np.median([r["feedforward_ms"] for r in rows]))}
 
 
-def false_prearms(cfg: TactileConfig, speeds=(0.05, 0.1, 0.2, 0.3), stops_m=(0.0005, 0.001, 0.002, 0.003),
-                  *, max_envelope: bool = True) -> dict:
+def false_prearms(cfg: TactileConfig, speeds=(0.05, 0.1, 0.2, 0.3), stops_m=(0.0005, 0.001, 0.002, 0.003)) -> dict:
     """Near-misses (stop short of the surface): how many trigger a pre-arm, and how strong it gets."""
     r = TactileRenderer(cfg, feedforward=True)
     rows = []
