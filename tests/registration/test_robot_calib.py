@@ -18,7 +18,7 @@ def look_at(eye, target):
     return from_rt(np.column_stack([x, y, z]), eye)
 
 
-def sphere_pair(rig, T_robot_cam, p_robot, radius_m=0.005, ss=4, noise=0.0, rng=None):
+def sphere_pair(rig, T_robot_cam, p_robot, radius_m=0.005, ss=4, noise=0.0, rng=None, hide=0.0):
     """Anti-aliased, shaded green sphere images of the marker at ``p_robot`` (grey background)."""
     T_cam_robot = invert(T_robot_cam)
     p_cam = T_cam_robot[:3, :3] @ p_robot + T_cam_robot[:3, 3]
@@ -40,6 +40,8 @@ def sphere_pair(rig, T_robot_cam, p_robot, radius_m=0.005, ss=4, noise=0.0, rng=
         patch = np.where(inside[..., None], np.stack([0 * lam, 30 + 225 * lam, 0 * lam], -1), img[0, 0])
         patch = patch.reshape(n, ss, n, ss, 3).mean(axis=(1, 3))
         img[y0 : y0 + n, x0 : x0 + n] = patch
+        if hide and len(imgs) == 0:  # a dark link in front of the left edge of the marker (left image)
+            img[:, : int(round(c[0] - r + 2 * r * hide))] = (40.0, 40.0, 40.0)
         if noise:
             img += rng.normal(0, noise, img.shape)
         imgs.append(np.clip(np.round(img), 0, 255).astype(np.uint8))
@@ -86,21 +88,25 @@ def test_procedure_recovers_transform(setup, rng):
 
 
 def test_occluded_or_unreachable_poses_are_dropped_and_reported(setup, rng):
-    rig, T_true = setup
+    _, T_true = setup
+    rig = StereoRig.from_fov(640, 480, 60.0, 0.06)  # marker radius ≈ 5 px
     targets = select_poses(6, seed=2)
-    blank = np.full((240, 320, 3), 120, np.uint8)
+    blank = np.full((480, 640, 3), 120, np.uint8)
 
     def grab(p, t):
-        return (blank, blank) if np.array_equal(t, targets[1]) else sphere_pair(rig, T_true, p)
+        if np.array_equal(t, targets[1]):
+            return blank, blank
+        return sphere_pair(rig, T_true, p, hide=0.2 if np.array_equal(t, targets[2]) else 0.0)  # 16 % of it
 
     obs = measure(targets, rig, move_to=lambda t: None if np.array_equal(t, targets[0]) else t.copy(), grab=grab)
-    assert obs.ok.tolist() == [False, False, True, True, True, True]
+    assert obs.ok.tolist() == [False, False, False, True, True, True]
     rep = report(solve(obs, rig), obs, T_true)
-    assert rep["poses_used"] == 4
-    assert [d["index"] for d in rep["poses_dropped"]] == [0, 1]
+    assert rep["poses_used"] == 3
+    assert [d["index"] for d in rep["poses_dropped"]] == [0, 1, 2]
     assert "reachable" in rep["poses_dropped"][0]["reason"] and "green" in rep["poses_dropped"][1]["reason"]
+    assert "left: marker area" in rep["poses_dropped"][2]["reason"]
     # fewer than 3 measured poses: a failed fit, and report refuses it
-    obs.p_cam[3:] = np.nan
+    obs.p_cam[4:] = np.nan
     fit = solve(obs, rig)
     assert not fit and "only 1 pose" in fit.reason
     with pytest.raises(CalibrationError, match="failed"):

@@ -33,6 +33,7 @@ class MarkerDetection:
     uv: np.ndarray | None = None
     radius_px: float = 0.0
     fill: float = 0.0  # blob weight / area of the disc of the same radius (1 for a full disc)
+    area_px: float = 0.0  # covered area (sum of pixel coverage), px²
     reason: str = ""
 
     def __bool__(self) -> bool:
@@ -113,7 +114,7 @@ def detect_marker(
     if fill < min_fill:
         return MarkerDetection(False, uv=np.array([u, v]), radius_px=radius, fill=fill,
                                reason=f"blob fills {fill:.2f} of its disc: partly hidden?")
-    return MarkerDetection(True, uv=np.array([u, v]), radius_px=radius, fill=fill)
+    return MarkerDetection(True, uv=np.array([u, v]), radius_px=radius, fill=fill, area_px=total)
 
 
 def _local_mean(values: np.ndarray, where: np.ndarray, size: int) -> np.ndarray:

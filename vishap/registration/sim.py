@@ -111,7 +111,10 @@ class SimCalibration:
 
     # the procedure ------------------------------------------------------------------------
     def run(self, n_poses: int, seed: int = 0, *, robust: bool = False, keep_observations: bool = False) -> dict:
-        """Select ``n_poses``, measure them, solve two ways; reports for both.
+        """Measure ``n_poses`` usable poses, solve two ways; reports for both.
+
+        Poses follow the maximin sequence of :func:`select_poses`; when the marker is hidden at
+        one, the arm moves on to the next in the sequence (``poses_visited`` counts them).
 
         ``closed_form``: absolute orientation of the triangulated points (VisHap's method);
         ``reprojection_refined``: then refined on the marker's image positions (the default
@@ -119,9 +122,11 @@ class SimCalibration:
         """
         self._t = 0.0
         self.renderer.reset_effects()
-        targets = select_poses(n_poses, seed, box=self.box, reachable=self.reachable)
-        obs = measure(targets, self.rig, move_to=self._move_to, grab=self._grab)
-        out = {"poses": int(n_poses), "seed": int(seed), "render_size": list(self.size)}
+        # the maximin sequence beyond n: where to go instead when the marker is hidden at a pose
+        targets = select_poses(max(3 * n_poses, n_poses + 12), seed, box=self.box, reachable=self.reachable)
+        obs = measure(targets, self.rig, move_to=self._move_to, grab=self._grab, needed=n_poses)
+        out = {"poses": int(n_poses), "poses_visited": len(obs.targets_robot), "seed": int(seed),
+               "render_size": list(self.size)}
         fits = {}
         for name, refine in (("closed_form", False), ("reprojection_refined", True)):
             fit = solve(obs, self.rig, robust=robust, refine=refine)
@@ -164,6 +169,7 @@ def calibrate_sim(*, n_poses: int, seed: int = 0, rig_path=None, size=None, robu
     main = res["reprojection_refined"]
     record = {
         "poses": n_poses,
+        "poses_visited": res["poses_visited"],
         "poses_used": main["poses_used"],
         "per_axis_error_mm": main["per_axis_error_mm"],
         "rms_mm": main["rms_mm"],
