@@ -8,6 +8,7 @@ layer derives them from the force (Hertz patch) and the surface velocity.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -52,4 +53,4 @@ class ContactSample:
     @property
     def tangential_speed(self) -> float:
         """Speed of the finger along the surface (object x–y plane), m/s."""
-        return float(np.hypot(self.velocity[0], self.velocity[1]))
+        return math.hypot(self.velocity[0], self.velocity[1])

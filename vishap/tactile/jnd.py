@@ -45,6 +45,7 @@ class JNDQuantiser:
         self.changed = 0  # offers that differ at all from the previous offer (a change-only sender's updates)
         self.sent = 0
         self._last_offer = np.full((len(self.bands), 2), np.nan)
+        self._offer = None
 
     @property
     def saved_fraction(self) -> float:
@@ -59,6 +60,11 @@ class JNDQuantiser:
     def update(self, amplitudes, frequencies) -> np.ndarray:
         """Offer new per-band targets; return a bool mask of the bands whose command changed."""
         changed = np.zeros(len(self.bands), dtype=bool)
+        offer = (tuple(amplitudes), tuple(frequencies))
+        if offer == self._offer:  # the same targets again: nothing can have become perceptible
+            self.offered += len(self.bands)
+            return changed
+        self._offer = offer
         for i, b in enumerate(self.bands):
             a, f = float(amplitudes[i]), float(frequencies[i])
             self.offered += 1

@@ -134,7 +134,8 @@ class ContactFeatures:
 
     @property
     def speed_m_s(self) -> float:
-        return float(np.hypot(*self.centroid_velocity_m_s))
+        v = self.centroid_velocity_m_s
+        return math.hypot(v[0], v[1])
 
 
 class FeatureTracker:
