@@ -63,7 +63,6 @@ def build(cfg: DemoConfig, out: Path) -> Stages:
     vision = need("vishap.vision.pipeline", "vision")
     capture = need("vishap.vision.capture", "vision capture")
     world_scene = need("vishap.world.scene", "world (scenes)")
-    world_mod = need("vishap.world.world", "world")
     kin = need("vishap.robot.kinematics", "robot kinematics")
     mjcf = need("vishap.robot.mjcf", "robot (model)")
     runtime = need("vishap.runtime", "runtime")
@@ -80,10 +79,10 @@ def build(cfg: DemoConfig, out: Path) -> Stages:
     shape = "sphere" if po_spec.shape == "sphere" else "plate"
     size = (po_spec.size_m[0] / 2,) if shape == "sphere" else tuple(po_spec.size_m)
     servo = build_mod.build_servo(mjcf.PassiveObject(shape, size, po_spec.mass_kg), substeps=cfg.substeps,
-                                  sensor=cfg.encoder)
+                                  sensor=cfg.encoder, policy=cfg.servo_policy)
     plant, controller = servo.device, servo.controller
     T_est, calib_report = calibrate(cfg, rig, out)
-    world = world_mod.World(scene, latency_s=cfg.vision_latency_s + 0.5 / cfg.scene_hz)
+    world = make_world(cfg, scene, rig, T_est)
     lim = plant.limits
     lo = np.asarray(lim.workspace_min, float)
     hi = np.asarray(lim.workspace_max, float)
@@ -113,6 +112,31 @@ def build(cfg: DemoConfig, out: Path) -> Stages:
     st.tactile_state = tactile_step_state
     st.overlay = lambda pair, row, dev, target, t, extra=(): _overlay(st, pair, row, dev, target, t, extra)
     return st
+
+
+def make_world(cfg: DemoConfig, scene, rig, T_est):
+    """The world with a Kalman finger predictor whose measurement noise matches the stereo model
+    (from the calibrated camera position; 5 mm without a calibration) and whose latency is the
+    vision latency plus half a scene period (the mean wait for the scene tick)."""
+    world_mod = need("vishap.world.world", "world")
+    pred = need("vishap.world.predictor", "world (predictor)")
+    noise = cfg.finger_noise_m or (0.005 if T_est is None else stereo_noise_m(rig, T_est, scene.objects[0].centre))
+    return world_mod.World(scene, predictor=pred.KalmanPredictor(meas_std_m=noise),
+                           latency_s=cfg.vision_latency_s + 0.5 / cfg.scene_hz)
+
+
+def stereo_noise_m(rig, T_robot_cam, p_robot) -> float:
+    """Isotropic-equivalent σ (m) of a triangulated point at ``p_robot``: the vision's pixel σ
+    propagated through the rig (lateral z·σ/f, depth z²·√2·σ/(f·B)); what the world's Kalman
+    predictor should assume. Uses the rig's geometry (the camera distance is a property of the set-up)."""
+    from vishap.vision.stereo import StereoConfig
+
+    sigma_px = StereoConfig().sigma_px
+    z = float(np.linalg.norm(np.asarray(p_robot, float) - np.asarray(T_robot_cam, float)[:3, 3]))
+    f = rig.rectified_fx_px
+    lateral = z * sigma_px / f
+    depth = z * z * np.sqrt(2.0) * sigma_px / (f * rig.rectified_baseline_m)
+    return float(np.sqrt((2 * lateral ** 2 + depth ** 2) / 3.0))
 
 
 def _vision_result(est) -> dict:

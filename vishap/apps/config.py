@@ -52,6 +52,11 @@ class DemoConfig(Schema):
     tactile_hz: float = Field(default=1000.0, ge=100.0, le=10000.0)
     scene_hz: float = Field(default=60.0, gt=1.0, le=1000.0)
     substeps: int = Field(default=2, ge=1, le=20, description="MuJoCo physics steps per servo period")
+    servo_policy: Literal["hold", "interpolate", "extrapolate"] = Field(
+        default="interpolate", description="how the servo bridges X_d samples (robot TargetShaper)")
+    finger_noise_m: float | None = Field(
+        default=None, gt=0.0, description="fingertip noise σ the world's Kalman predictor assumes; None: from the "
+                                          "stereo model (vision's pixel σ) at the object's distance")
     encoder: Literal["exact", "encoder"] = Field(default="encoder", description="joint readings: exact or quantised encoders")
     background_frames: int = Field(default=10, ge=0, description="hand-free frames at the start (VisHap learns the background from 10)")
     vision_latency_s: float = Field(default=0.010, ge=0.0, le=0.5,

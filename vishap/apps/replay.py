@@ -97,9 +97,10 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
     report["vision"] = compare(v, nv, ["found", "p_cam", "uv_left", "uv_right", "confidence"], atol)
 
     # -- world ------------------------------------------------------------------------------------
+    from vishap.apps.assemble import make_world
+
     world_scene = need("vishap.world.scene", "world (scenes)")
-    world_mod = need("vishap.world.world", "world")
-    world = world_mod.World(world_scene.load_scene(cfg.scene), latency_s=cfg.vision_latency_s + 0.5 / cfg.scene_hz)
+    world = make_world(cfg, world_scene.load_scene(cfg.scene), rig, T_est)
     s, sv = ch.get("scene", {}), ch["servo"]
     tick_of = {round(float(t) * cfg.servo_hz): i for i, t in enumerate(sv["t"])}
     scene_rows = len(s.get("t", []))
