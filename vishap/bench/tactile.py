@@ -26,6 +26,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="sensor noise levels, Pa (default 150 400 800 1200; the headline uses 150)")
     p.add_argument("--repeats", type=int, default=9, help="timing repeats after 2 warm-ups (median is reported)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--quick", action="store_true", help="small approach / near-miss grids (a smoke run)")
 
 
 def _timing(cfg, seconds: float, repeats: int) -> tuple[dict, object]:
@@ -138,8 +139,12 @@ def run(args: argparse.Namespace) -> dict:
     save_figure(fig, out / "classifier_accuracy.png")
 
     # feed-forward onset and near-miss false pre-arms
-    g = onset_gain(cfg)
-    f = false_prearms(cfg, speeds=(0.05, 0.1, 0.15, 0.2, 0.3), stops_m=(0.0005, 0.001, 0.0015, 0.002, 0.003, 0.005))
+    if args.quick:
+        g = onset_gain(cfg, speeds=(0.1, 0.3), decels=(0.0,))
+        f = false_prearms(cfg, speeds=(0.1, 0.3), stops_m=(0.001, 0.003))
+    else:
+        g = onset_gain(cfg)
+        f = false_prearms(cfg, speeds=(0.05, 0.1, 0.15, 0.2, 0.3), stops_m=(0.0005, 0.001, 0.0015, 0.002, 0.003, 0.005))
     rec["feedforward_onset_gain_ms"] = g["median_gain_ms"]
     rec["feedforward"] = {k: v for k, v in g.items() if k != "rows"} | {
         "approaches": len(g["rows"]), "near_misses": f["near_misses"], "false_prearms": f["false_prearms"],
