@@ -41,10 +41,12 @@ class PipelineConfig:
     acquire_radius_band: tuple[float, float] = (0.75, 1.06)  # cap radius / finger_radius_m accepted when
     #   (re)acquiring over the full frame; measured on renders: index tip 5–95 % 0.75–1.04, thumb/knuckles median 1.07
     learn_frames: int = 10
-    recheck_frames: int = 15        # while tracking, search the full frame every this many frames (0: never)
+    recheck_frames: int = 0         # while tracking, search the full frame every this many frames (0: never;
+    #   measured: 15 jumped from a healthy index track to the thumb as the index went behind the plate)
     colour_refine: bool = False     # cap fit on colour unmixed against the background (measured worse on shaded renders)
     filtered_output: bool = True    # report Kalman-filtered tips (else the raw detections)
     full_search_on_miss: bool = True  # a miss in the window triggers a full-frame search of that view
+    max_speed_m_s: float = 1.0      # gate of that search: how far the finger may have moved since its last hit
     recheck_jump_px: float = 12.0   # a recheck result this far from the track restarts the track there
     tracking: bool = True           # False: always search the full frame
 
@@ -228,6 +230,11 @@ class VisionPipeline:
             full = snap_roi((0, 0, self._size[0], self._size[1]), seg.config.tile, self._size)
             m_full = seg.segment(image, full)
             tips = detect_fingertips(m_full, self.K / z, cfg.fingertip, max_tips=cfg.max_candidates)
+            # keep the finger's identity: only candidates the finger could have reached since its
+            # last detection at max_speed_m_s (a thumb beside a hidden index tip is rejected)
+            since = t - (trk.t_hit if trk.t_hit is not None else t)
+            gate = 2 * r * (1 + cfg.fingertip.delta_r_frac) + cfg.max_speed_m_s * (since + 1 / 30) * self.rig.fx_px / z
+            tips = [tp for tp in tips if np.hypot(*(tp.uv - pred)) <= gate]
             if tips:
                 roi, mode = full, "recheck"
         te = time.perf_counter()

@@ -134,6 +134,7 @@ class TipTracker:
         self.config = config
         self.kf = KalmanCV(2, q=config.q_px, r=config.r_px)
         self.t: float | None = None
+        self.t_hit: float | None = None  # time of the last detection
 
     @property
     def tracking(self) -> bool:
@@ -176,6 +177,7 @@ class TipTracker:
             if self.kf.initialized:
                 self.kf.update(None)
             return
+        self.t_hit = t
         if not self.tracking:
             self.kf.reset(uv)
             self.t = t
