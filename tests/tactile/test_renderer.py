@@ -194,3 +194,15 @@ def test_contact_sample_shapes_and_the_literal_kernel():
     out = r.render(press(0.2), record=False)
     # literally, R1's factor vanishes at its own centre (x = mu1) and the others take over
     assert np.abs(out.regions[0]).max() < 1e-9 and np.abs(out.regions[1:]).max() > 0
+
+
+@pytest.mark.parametrize("pitch_deg, state, region", [(10, "distributed", 1), (70, "concentrated", 0)])
+def test_finger_pitch_selects_pad_or_tip(pitch_deg, state, region):
+    p = math.radians(pitch_deg)
+    d = [math.cos(p), 0.0, -math.sin(p)]
+    r = TactileRenderer(CFG)
+    for k in range(450):
+        t = k * 1e-3
+        r.step(ContactSample(t, [0.03 * t, 0, 0], 0.48 * min(1.0, t / 0.05), [0.03, 0, 0], True, finger_dir=d))
+    assert r.state.value == state
+    assert int(np.argmax(r.region_amp)) == region

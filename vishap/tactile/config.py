@@ -79,6 +79,11 @@ class SensorConfig(Schema):
     contact_radius_ref_m: float = Field(gt=0.0, description="Hertz patch radius at force_ref_n")
     force_ref_n: float = Field(gt=0.0)
     default_pad_x_m: float = Field(ge=0.0, description="pad contact centre when a sample gives none")
+    flat_pad_x_m: float = Field(ge=0.0, description="contact centre of a finger lying flat (finger pad, R2)")
+    pitch_flat_rad: float = Field(ge=0.0, le=1.5708, description="finger pitch at or below which the pad lies flat")
+    pitch_tip_rad: float = Field(ge=0.0, le=1.5708, description="finger pitch from which only the tip touches")
+    flat_elongation: float = Field(ge=0.0, description="extra patch length along the finger when flat (× radius)")
+    flat_widening: float = Field(ge=0.0, description="extra patch width across the finger when flat (× radius)")
     subsamples: int = Field(ge=1, le=7, description="integration points per element side")
 
 

@@ -31,6 +31,8 @@ class ContactSample:
     in_contact: whether the world reports contact.
     pad_position: optional (2,) contact centre on the sleeve (x along the finger, y across), m.
     contact_radius_m: optional (2,) semi-axes of the pad contact patch, m.
+    finger_dir: optional (3,) finger pointing direction in the object frame; its pitch tells a
+        fingertip press from a flat pad stroke when the patch itself is not given.
     """
 
     t: float
@@ -40,15 +42,16 @@ class ContactSample:
     in_contact: bool
     pad_position: np.ndarray | None = None
     contact_radius_m: np.ndarray | None = field(default=None)
+    finger_dir: np.ndarray | None = None
 
     def __post_init__(self):
         # shapes are checked here; non-finite values are allowed and rendered as "no contact"
         for name in ("position", "velocity"):
             object.__setattr__(self, name, as_array(getattr(self, name), (3,), name, finite=False))
-        for name in ("pad_position", "contact_radius_m"):
+        for name, n in (("pad_position", 2), ("contact_radius_m", 2), ("finger_dir", 3)):
             v = getattr(self, name)
             if v is not None:
-                object.__setattr__(self, name, as_array(v, (2,), name, finite=False))
+                object.__setattr__(self, name, as_array(v, (n,), name, finite=False))
 
     @property
     def tangential_speed(self) -> float:

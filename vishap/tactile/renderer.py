@@ -9,10 +9,11 @@ and returns a :class:`DriveBlock` holding that tick's samples (10 at the default
 glove channel (0–20 Hz), the three regional sleeve actuators and the 24 HAPTEX pins. Everything is
 finite and within [−1, 1]; amplitudes move no faster than ``control.amplitude_slew_per_s``.
 
-When a sample carries no pad geometry (``pad_position``/``contact_radius_m``), the patch is placed
-at the fingertip centre with a Hertz radius from the force, and the array's centroid velocity and
-local pulse durations are taken from the surface kinematics: the tangential finger velocity and the
-dwell time (patch length / speed) of a surface point under the patch.
+When a sample carries no pad geometry (``pad_position``/``contact_radius_m``), the patch comes from
+:func:`~vishap.tactile.sensor.pad_patch`: a Hertz patch at the fingertip centre, moved to the finger
+pad and stretched when the sample's ``finger_dir`` says the finger lies flat; the array's centroid
+velocity and local pulse durations are then taken from the surface kinematics: the tangential finger
+velocity and the dwell time (patch length / speed) of a surface point under the patch.
 """
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ from vishap.tactile.jnd import JNDQuantiser
 from vishap.tactile.phsm import phsm_targets
 from vishap.tactile.pins import PinRenderer, nonuniformity_map, weave_tile
 from vishap.tactile.regions import RegionController
-from vishap.tactile.sensor import FeatureTracker, SensorArray, SensorFrame, hertz_radius
+from vishap.tactile.sensor import FeatureTracker, SensorArray, SensorFrame, pad_patch
 from vishap.tactile.synth import Oscillators
 
 __all__ = ["DriveBlock", "TactileRenderer"]
@@ -143,12 +144,11 @@ class TactileRenderer:
         if not (np.isfinite(s.position).all() and np.isfinite(s.velocity).all()):
             force = 0.0  # a corrupt sample is treated as no contact
         force = max(force, 0.0)
-        centre = s.pad_position if s.pad_position is not None else np.array([self.cfg.sensor.default_pad_x_m, 0.0])
+        centre, radius = pad_patch(force, self.cfg.sensor, s.finger_dir)
+        if s.pad_position is not None:
+            centre = s.pad_position
         if s.contact_radius_m is not None:
             radius = s.contact_radius_m
-        else:
-            a = hertz_radius(force, self.cfg.sensor)
-            radius = np.array([a, a])
         p = self.array.pressure(centre, radius, force)
         f = self.tracker.update(SensorFrame(s.t, p))
         if s.pad_position is None and f.in_contact:

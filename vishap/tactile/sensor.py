@@ -28,13 +28,37 @@ def _pair(v) -> tuple[float, float]:
     return float(v[0]), float(v[1])
 
 
-__all__ = ["SensorArray", "SensorFrame", "ContactFeatures", "FeatureTracker", "hertz_radius"]
+__all__ = ["SensorArray", "SensorFrame", "ContactFeatures", "FeatureTracker", "hertz_radius", "pad_patch"]
 
 
 def hertz_radius(force_n: float, cfg: SensorConfig) -> float:
     """Patch radius of a Hertz contact, a ∝ F^(1/3), scaled to ``contact_radius_ref_m`` at ``force_ref_n``."""
     f = max(float(force_n), 0.0)
     return cfg.contact_radius_ref_m * (f / cfg.force_ref_n) ** (1.0 / 3.0)
+
+
+def pad_patch(force_n: float, cfg: SensorConfig, finger_dir=None) -> tuple[np.ndarray, np.ndarray]:
+    """Where and how large the patch on the sleeve is when the contact model does not say.
+
+    Without the finger's direction: a Hertz patch at the fingertip centre. With ``finger_dir`` (3,),
+    the finger's pointing direction in the object frame (z = surface normal), its pitch
+    θ = asin(−dir_z) moves the patch from the fingertip (θ ≥ ``pitch_tip_rad``: pressing, §3.2) to
+    the pad (θ ≤ ``pitch_flat_rad``: a flat finger stroking, §3.3), where it is longer and wider.
+    Returns (centre (2,), semi-axes (2,)) in metres, sleeve frame.
+    """
+    a = hertz_radius(force_n, cfg)
+    s = 1.0
+    if finger_dir is not None:
+        d = np.asarray(finger_dir, dtype=np.float64)
+        n = float(np.linalg.norm(d))
+        if n > 1e-9 and np.isfinite(n):
+            pitch = math.asin(min(max(-d[2] / n, -1.0), 1.0))
+            span = max(cfg.pitch_tip_rad - cfg.pitch_flat_rad, 1e-6)
+            s = min(max((pitch - cfg.pitch_flat_rad) / span, 0.0), 1.0)  # 0 flat pad … 1 fingertip
+    flat = 1.0 - s
+    centre = np.array([cfg.default_pad_x_m * s + cfg.flat_pad_x_m * flat, 0.0])
+    radius = np.array([a * (1.0 + cfg.flat_elongation * flat), a * (1.0 + cfg.flat_widening * flat)])
+    return centre, radius
 
 
 @dataclass(frozen=True)
