@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from time import perf_counter
 
 import numpy as np
 
@@ -170,10 +171,8 @@ def run_approach(
     d_f = np.zeros(n_ticks)
     touching = np.zeros(n_ticks, dtype=bool)
     xd_log = np.empty((n_ticks, 3))
-    t_contact = None
+    t_contact, k_contact = None, 0
     touched = False
-    import time as _time
-
     cost = 0.0
     for k in range(n_ticks):
         t = k * dt
@@ -196,7 +195,7 @@ def run_approach(
         s = world.subject or obj
         F_pad = pad.force_on_device(p_f, v_f, p_dev, v_dev, s.normal, half)
         plant.apply_tip_force(F_pad)
-        c0 = _time.perf_counter()
+        c0 = perf_counter()
         # the subject's law renders contact while the device is under its surface (Eq. 8-9)
         F_law, lam, R = world.contact_render(p_dev, v_dev, it)
         if lam != lam_state:
@@ -205,7 +204,7 @@ def run_approach(
                 world.law.reset()
             lam_state = lam
         servo.tick(t, X_d, F_law)
-        cost += _time.perf_counter() - c0
+        cost += perf_counter() - c0
         F = ctrl.F_pd
         nrm = s.normal
         f_n[k] = F[0] * nrm[0] + F[1] * nrm[1] + F[2] * nrm[2]
