@@ -76,6 +76,7 @@ def classifier_accuracy(cfg: TactileConfig, *, n_per_class: int = 20, noise_pa: 
     rng = np.random.default_rng(seed)
     array = SensorArray(cfg.sensor)
     ok = {"rules": [], "threshold": []}
+    final = {"rules": [], "threshold": []}  # state at each sequence's last frame
     per_class = {lab.value: {"rules": [], "threshold": []} for lab in LABELS}
     for lab in LABELS:
         for _ in range(n_per_class):
@@ -89,10 +90,14 @@ def classifier_accuracy(cfg: TactileConfig, *, n_per_class: int = 20, noise_pa: 
                     for k, v in (("rules", a == lab), ("threshold", b == lab)):
                         ok[k].append(v)
                         per_class[lab.value][k].append(v)
+            final["rules"].append(a == lab)
+            final["threshold"].append(b == lab)
     return {
         "rules": float(np.mean(ok["rules"])),
         "threshold": float(np.mean(ok["threshold"])),
         "per_class": {c: {k: float(np.mean(v)) for k, v in d.items()} for c, d in per_class.items()},
+        "sequence_final_state": {k: float(np.mean(v)) for k, v in final.items()},
+        "sequences": len(final["rules"]),
         "frames": len(ok["rules"]),
         "noise_pa": noise_pa,
     }
