@@ -159,6 +159,8 @@ class FabricFriction(_PlaneLaw):
         c = np.asarray(centre, dtype=float)
         super().__init__(R[:, 2], float(R[:, 2] @ c), max_force_n)
         self.R, self.centre = R, c
+        self._axes = tuple(tuple(float(v) for v in R[:, i]) for i in range(3))
+        self._c = tuple(float(v) for v in c)
         self.mu_s, self.mu_k = float(mu_static), float(mu_kinetic)
         self.k, self.c = float(k_penalty_n_m), float(damping_n_s_m)
         self.kt, self.ct = float(k_tangential_n_m), float(damping_tangential_n_s_m)
@@ -175,31 +177,39 @@ class FabricFriction(_PlaneLaw):
         return self.k * d if d > 0.0 else 0.0
 
     def force_robot(self, p_robot, v_robot) -> np.ndarray:
-        q = (np.asarray(p_robot, dtype=float) - self.centre) @ self.R
-        d = -q[2]
+        # object-frame coordinates on floats (the hot path: no small-array NumPy calls)
+        (xx, xy, xz), (yx, yy, yz), (nx, ny, nz) = self._axes
+        px, py, pz = p_robot[0] - self._c[0], p_robot[1] - self._c[1], p_robot[2] - self._c[2]
+        d = -(nx * px + ny * py + nz * pz)
         if d <= 0.0:
             self.reset()
             return np.zeros(3)
-        vq = np.asarray(v_robot, dtype=float) @ self.R
-        fn = min(max(self.k * d - self.c * vq[2], 0.0), self.max_force_n)
+        qx, qy = xx * px + xy * py + xz * pz, yx * px + yy * py + yz * pz
+        vx, vy, vz = float(v_robot[0]), float(v_robot[1]), float(v_robot[2])
+        ux, uy, un = xx * vx + xy * vy + xz * vz, yx * vx + yy * vy + yz * vz, nx * vx + ny * vy + nz * vz
+        fn = min(max(self.k * d - self.c * un, 0.0), self.max_force_n)
         if self.anchor is None:
-            self.anchor = q[:2].copy()
-        ft = -self.kt * (q[:2] - self.anchor) - self.ct * vq[:2]
-        ft_norm = math.hypot(ft[0], ft[1])
-        speed = math.hypot(vq[0], vq[1])
+            self.anchor = np.array([qx, qy])
+        ax, ay = float(self.anchor[0]), float(self.anchor[1])
+        fx, fy = -self.kt * (qx - ax) - self.ct * ux, -self.kt * (qy - ay) - self.ct * uy
+        ft_norm = math.hypot(fx, fy)
+        speed = math.hypot(ux, uy)
         if self.sliding and speed < self.v_restick:
             self.sliding = False
         if not self.sliding and ft_norm > self.mu_s * fn:
             self.sliding = True
         if self.sliding:
             if speed > 1e-9:
-                direction = -vq[:2] / speed
+                ex, ey = -ux / speed, -uy / speed
+            elif ft_norm > 0.0:
+                ex, ey = fx / ft_norm, fy / ft_norm
             else:
-                direction = ft / ft_norm if ft_norm > 0 else np.zeros(2)
-            ft = self.mu_k * fn * direction
-            self.anchor = q[:2] + ft / self.kt  # drag the stick point so the spring holds μ_k·f_n
-        self.normal_force_n, self.tangential_force_n = fn, math.hypot(ft[0], ft[1])
-        F = self.R[:, 0] * ft[0] + self.R[:, 1] * ft[1] + self.normal * fn
+                ex = ey = 0.0
+            fk = self.mu_k * fn
+            fx, fy = fk * ex, fk * ey
+            self.anchor = np.array([qx + fx / self.kt, qy + fy / self.kt])  # drag the stick point: spring = μ_k·f_n
+        self.normal_force_n, self.tangential_force_n = fn, math.hypot(fx, fy)
+        F = np.array([xx * fx + yx * fy + nx * fn, xy * fx + yy * fy + ny * fn, xz * fx + yz * fy + nz * fn])
         return saturate(F, self.max_force_n)
 
 
