@@ -200,7 +200,9 @@ class VisionPipeline:
         cfg = self.config
         trk = self.trackers[side]
         seg = self.segmenters[side]
-        pred = trk.predict(t) if cfg.tracking else None
+        pred = trk.predict(t)  # the filter runs in every mode (filtered output); the window only when tracking
+        if not cfg.tracking:
+            pred = None
         z = self._z if self._z is not None else cfg.z_default_m
         r = self.K / z
         roi = trk.window(self._size, extra_px=2 * r * (1 + cfg.fingertip.delta_r_frac)) if pred is not None else None

@@ -78,11 +78,13 @@ class SkinModel:
 
     # ------------------------------------------------------------------ fitting
     @classmethod
-    def fit(cls, images, labels, *, skin_label: int = 1, max_sigma: float = 2.5,
+    def fit(cls, images, labels, *, skin_label: int = 1, max_sigma: float | None = None, coverage: float = 0.99,
             min_saturation: int = 40, min_value: int = 30, source: str = "") -> "SkinModel":
         """Fit the Gaussian to the hue of labelled skin pixels of BGR ``images``.
 
-        Pixels with label ``skin_label`` that pass the achromatic gate are used.
+        Pixels with label ``skin_label`` that pass the achromatic gate are used. The probability
+        threshold (``max_sigma``) is, unless given, the one that keeps the fraction ``coverage`` of
+        the training skin pixels.
         """
         sums = np.zeros(2)
         hues = []
@@ -99,7 +101,10 @@ class SkinModel:
         sums[:] = np.sin(ang).sum(), np.cos(ang).sum()
         mean = (math.atan2(sums[0], sums[1]) * _HUE_RANGE / (2 * np.pi)) % _HUE_RANGE
         d = _wrap(h - mean)
-        return cls(hue_mean=float(mean), hue_std=float(max(np.sqrt(np.mean(d * d)), 0.5)),
+        std = float(max(np.sqrt(np.mean(d * d)), 0.5))
+        if max_sigma is None:
+            max_sigma = float(np.quantile(np.abs(d), coverage) / std)
+        return cls(hue_mean=float(mean), hue_std=std,
                    max_sigma=max_sigma, min_saturation=min_saturation, min_value=min_value,
                    n_samples=int(h.size), source=source)
 
