@@ -135,9 +135,14 @@ class RegionController:
     def reset(self) -> None:
         self.params = self._targets[ContactState.NONE].copy()
 
-    def update(self, state: ContactState, dt: float) -> RegionSet:
+    def update(self, state: ContactState, dt: float, *, silent: bool = False) -> RegionSet:
+        """Slew towards ``state``'s target; while the output is ``silent`` (envelope ≈ 0) the
+        parameters are set at once — this is how a pre-arm readies the channels before contact."""
         r = self.cfg.control
         tgt = self._targets[state]
+        if silent:
+            self.params = tgt.copy()
+            return self.params
         p = self.params
         p.gamma = _slew(p.gamma, tgt.gamma, r.gamma_slew_per_s * dt)
         p.alpha = _slew(p.alpha, tgt.alpha, r.alpha_slew_per_s * dt)

@@ -181,7 +181,8 @@ class TactileRenderer:
         if eff != self.effective_state:
             self.state_since = t
         self.state, self.effective_state = state, eff
-        regions = self.controller.update(eff, dt)
+        # parameters may change freely while nothing is being output (pre-arming readies them)
+        regions = self.controller.update(eff, dt, silent=self.envelope < 1e-3 and not self.region_amp.any())
 
         speed = sample.tangential_speed
         key = (round(speed * 1e3), round(force * 1e2))  # 1 mm/s, 10 mN: far below one JND
