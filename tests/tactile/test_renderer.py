@@ -126,10 +126,13 @@ def test_feedforward_prearms_predicted_slip():
     r = TactileRenderer(CFG)
     samples, tc = approach(0.1, slide_m_s=0.3)
     states = []
+    slip = target_regions(ContactState.SLIP, CFG)
     for s in samples:
         r.step(s)
         if r.prearmed:
             states.append(r.effective_state)
+            # the channels are readied before contact: slip parameters, no overshoot from the old set
+            np.testing.assert_allclose(r.controller.params.gamma, slip.gamma)
     assert states and set(states) == {ContactState.SLIP}
 
 
