@@ -7,6 +7,10 @@ lesson of this project: a moving device that reads as foreground breaks the back
 :func:`phantom_link_points` is the drawing-only geometry of a PHANToM-class 3-DOF arm (shoulder at
 the origin, upper arm l1, forearm l2, elbow up) used when a sequence is scripted without the robot
 package; the demos pass the link points of :mod:`vishap.robot.kinematics` instead.
+
+:func:`encounter_ee` is the device's path in scripted sequences: like the encountered-type device
+of VisHap §2.3 it holds its passive object's top face under the finger (at the surface, inside the
+scene's opening), and :func:`device_links` draws it with the PHANToM's kinematics.
 """
 from __future__ import annotations
 
@@ -14,7 +18,8 @@ import math
 
 import numpy as np
 
-__all__ = ["L1_M", "L2_M", "TABLE_Z_M", "REACHABLE_BOX", "phantom_link_points", "clip_to_reachable"]
+__all__ = ["L1_M", "L2_M", "TABLE_Z_M", "REACHABLE_BOX", "phantom_link_points", "clip_to_reachable", "plate_region",
+           "touch_region", "encounter_ee", "device_links"]
 
 L1_M = 0.215        # upper arm, shoulder → elbow (PHANToM Premium 1.0), m
 L2_M = 0.170        # forearm, elbow → end-effector, m
@@ -45,3 +50,50 @@ def phantom_link_points(ee_robot) -> np.ndarray:
     base_top = np.array([-0.02, 0.0, -0.06])
     foot = np.array([-0.02, 0.0, TABLE_Z_M])
     return np.stack([foot, base_top, shoulder, elbow, ee])
+
+
+# ---------------------------------------------------------------------- encountered-type device path
+_CLEARANCE_M = 0.001   # gap kept between the passive object and the drawn object's frame
+_TOUCH_MARGIN_M = 0.004  # the finger's contact point stays this far inside the passive object's top face
+
+
+def plate_region(spec, passive) -> np.ndarray:
+    """((x_min, y_min), (x_max, y_max)) of the passive object's top-face centre inside the scene's opening."""
+    from vishap.sim.scene_objects import opening_half_extent
+
+    hx, hy = opening_half_extent(spec)
+    cx, cy = spec.centre_robot[0], spec.centre_robot[1]
+    mx = max(0.0, hx - passive.size_m[0] / 2.0 - _CLEARANCE_M)
+    my = max(0.0, hy - passive.size_m[1] / 2.0 - _CLEARANCE_M)
+    return np.array([[cx - mx, cy - my], [cx + mx, cy + my]])
+
+
+def touch_region(spec, passive) -> np.ndarray:
+    """Where the finger may touch: wherever some allowed position of the passive object lies under it."""
+    reg = plate_region(spec, passive)
+    half = np.array(passive.size_m[:2]) / 2.0 - _TOUCH_MARGIN_M
+    return np.array([reg[0] - half, reg[1] + half])
+
+
+def encounter_ee(spec, passive, tip_robot, depth_m: float = 0.0) -> np.ndarray:
+    """End-effector position that holds the passive object's top face under the fingertip.
+
+    The encountered-type device waits where the finger will touch (VisHap §2.3): the top face is
+    centred under the fingertip's (x, y), clipped into the scene's opening, at the surface height
+    (pushed down by ``depth_m`` when the finger presses the surface in, e.g. a key). The result lies
+    in :data:`REACHABLE_BOX` (a :class:`ValueError` otherwise: the scene does not fit the device).
+    """
+    reg = plate_region(spec, passive)
+    xy = np.clip(np.asarray(tip_robot, dtype=np.float64)[:2], reg[0], reg[1])
+    top = np.array([xy[0], xy[1], spec.surface_z_m - float(depth_m)])
+    ee = passive.ee_for_contact(top)
+    if np.any(ee < REACHABLE_BOX[0] - 1e-9) or np.any(ee > REACHABLE_BOX[1] + 1e-9):
+        raise ValueError(f"end-effector {ee.tolist()} for scene {spec.name!r} is outside the reachable box")
+    return ee
+
+
+def device_links(ee_robot) -> np.ndarray:
+    """(4, 3) link joints base → end-effector of the PHANToM at ``ee_robot`` (:mod:`vishap.robot.kinematics`)."""
+    from vishap.robot.kinematics import ik, link_points
+
+    return link_points(ik(np.asarray(ee_robot, dtype=np.float64)))

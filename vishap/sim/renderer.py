@@ -364,7 +364,12 @@ def _distortion_maps(K, d, w, h, m):
     uu, vv = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
     pts = np.stack([uu.ravel(), vv.ravel()], 1).reshape(-1, 1, 2)
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12)
-    x = cv2.undistortPointsIter(pts, K, d, None, None, crit).reshape(-1, 2)
+    undistort = getattr(cv2, "undistortPointsIter", None)  # OpenCV 4.x name; 5.x takes criteria in undistortPoints
+    if undistort is None:
+        x = cv2.undistortPoints(pts, K, d, None, None, None, crit)
+    else:
+        x = undistort(pts, K, d, None, None, crit)
+    x = x.reshape(-1, 2)
     mx = (K[0, 0] * x[:, 0] + K[0, 2] + m).reshape(h, w).astype(np.float32)
     my = (K[1, 1] * x[:, 1] + K[1, 2] + m).reshape(h, w).astype(np.float32)
     return mx, my

@@ -19,7 +19,7 @@ from vishap._core.config import read_mapping
 from vishap._core.errors import ConfigError
 from vishap.sim.device import TABLE_Z_M
 
-__all__ = ["SCENES_DIR", "SCENE_NAMES", "SceneSpec", "load_scene_spec", "object_meshes"]
+__all__ = ["SCENES_DIR", "SCENE_NAMES", "SceneSpec", "load_scene_spec", "object_meshes", "opening_half_extent"]
 
 SCENES_DIR = Path(__file__).resolve().parents[2] / "datasets" / "synthetic" / "scenes"
 SCENE_NAMES = ("wall", "button", "fabric")
@@ -90,6 +90,20 @@ def _frame(cx, cy, z_top, outer_x, outer_y, band, thick) -> trimesh.Trimesh:
     return trimesh.util.concatenate(parts)
 
 
+# width of the drawn frame around each object's open middle, and the button bezel's margin, m
+_BAND_M = {"wall": 0.008, "fabric": 0.016, "button": 0.013}
+_BEZEL_MARGIN_M = 0.030
+
+
+def opening_half_extent(spec: SceneSpec) -> tuple[float, float]:
+    """Half size (x, y) of the open middle of the drawn object, in which the passive object meets the finger."""
+    ex, ey = spec.extent_m
+    band = _BAND_M.get(spec.kind, _BAND_M["wall"])
+    if spec.kind == "button":
+        ex, ey = ex + _BEZEL_MARGIN_M, ey + _BEZEL_MARGIN_M
+    return ex / 2.0 - band, ey / 2.0 - band
+
+
 def object_meshes(spec: SceneSpec) -> list[tuple[str, trimesh.Trimesh, tuple[float, float, float]]]:
     """(name, mesh, sRGB colour 0…1) of the scene's drawn objects, robot frame."""
     cx, cy, _ = spec.centre_robot
@@ -97,11 +111,11 @@ def object_meshes(spec: SceneSpec) -> list[tuple[str, trimesh.Trimesh, tuple[flo
     ex, ey = spec.extent_m
     out = []
     if spec.kind == "button":
-        out.append(("bezel", _frame(cx, cy, z - 0.002, ex + 0.030, ey + 0.030, 0.013, 0.006), (0.30, 0.34, 0.42)))
+        out.append(("bezel", _frame(cx, cy, z - 0.002, ex + _BEZEL_MARGIN_M, ey + _BEZEL_MARGIN_M, _BAND_M["button"], 0.006), (0.30, 0.34, 0.42)))
     elif spec.kind == "fabric":
-        out.append(("fabric", _frame(cx, cy, z, ex, ey, 0.016, 0.002), (0.18, 0.26, 0.52)))
+        out.append(("fabric", _frame(cx, cy, z, ex, ey, _BAND_M["fabric"], 0.002), (0.18, 0.26, 0.52)))
     else:
-        out.append(("wall", _frame(cx, cy, z, ex, ey, 0.008, 0.003), (0.55, 0.62, 0.74)))
+        out.append(("wall", _frame(cx, cy, z, ex, ey, _BAND_M["wall"], 0.003), (0.55, 0.62, 0.74)))
     # posts holding the patch above the table at its corners
     for sx in (-1, 1):
         for sy in (-1, 1):
