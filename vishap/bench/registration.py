@@ -256,6 +256,7 @@ def _camera_robot(pose_counts, seeds, out: Path):
             for variant in ("closed_form", "reprojection_refined"):
                 r = rep[variant]
                 rows.append({"poses": n, "seed": s, "variant": variant, "poses_used": r["poses_used"],
+                             "poses_visited": rep["poses_visited"],
                              "per_axis_error_mm": r["per_axis_error_mm"], "rms_mm": r["rms_mm"],
                              "rotation_error_deg": r["rotation_error_deg"],
                              "translation_error_mm": r["translation_error_mm"],
