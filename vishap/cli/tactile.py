@@ -25,6 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     rd.add_argument("--config", default=None, help="tactile config file (default: built-in tactile.yaml)")
     rd.add_argument("--out", default="out/tactile", help="output folder (default out/tactile)")
     rd.add_argument("--no-feedforward", action="store_true", help="reactive rendering only")
+    rd.add_argument("--pitch-deg", type=float, default=None,
+                    help="finger pitch to the surface, degrees (e.g. 10: flat pad stroke, 70: fingertip)")
     rd.add_argument("--no-plots", action="store_true", help="skip the PNG charts")
     rd.add_argument("--seed", type=int, default=0, help="seed of the textile tile / non-uniformity map")
     rd.set_defaults(func=_render)
@@ -65,6 +67,13 @@ def _render(args: argparse.Namespace) -> int:
             samples = from_arrays({k: d[k] for k in d.files})
     else:
         samples = SCENARIOS[args.scenario]()
+    if args.pitch_deg is not None:
+        import dataclasses
+        import math
+
+        p = math.radians(args.pitch_deg)
+        d = np.array([math.cos(p), 0.0, -math.sin(p)])
+        samples = [dataclasses.replace(s, finger_dir=d) for s in samples]
     r = TactileRenderer(cfg, surface=args.surface, seed=args.seed, feedforward=not args.no_feedforward)
     out = r.render(samples)
     trace = out.extra["trace"]
