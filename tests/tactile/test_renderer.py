@@ -13,7 +13,7 @@ from vishap.tactile.evaluate import false_prearms, onset_gain
 from vishap.tactile.feedforward import time_to_contact
 from vishap.tactile.regions import target_regions
 from vishap.tactile.renderer import TactileRenderer
-from vishap.tactile.scenarios import approach, from_patch_track, near_miss, press, stroke, to_arrays
+from vishap.tactile.scenarios import approach, from_patch_track, press, stroke, to_arrays
 from vishap.tactile.sequences import worked_example
 from vishap.tactile.synth import resynthesize, trace_arrays
 
