@@ -80,6 +80,14 @@ def _summary(results, in_place_m):
     }
 
 
+def _brief(rs, trajs, in_place_m):
+    sm = _summary(rs, in_place_m)
+    out = {k: sm[k] for k in ("device_in_place_rate", "contact_position_error_mm", "contact_lead_time_ms_min")}
+    straight = [r.in_place for r, tr in zip(rs, trajs) if abs(tr.bow_m) < 0.002]
+    out["straight_paths_in_place_rate"] = float(np.mean(straight)) if straight else None
+    return out
+
+
 def _line_fit(d, f):
     slope, icpt = np.polyfit(d, f, 1)
     res = f - (slope * d + icpt)
@@ -256,9 +264,20 @@ def run(args) -> dict:
                          seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02)
             for i, tr in enumerate(trajs)
         ]
-        sm = _summary(rs, in_place_m)
-        sens[label] = {k: sm[k] for k in ("device_in_place_rate", "contact_position_error_mm", "contact_lead_time_ms_min")}
-        sens[label]["straight_paths_in_place_rate"] = float(np.mean([r.in_place for r, tr in zip(rs, trajs) if abs(tr.bow_m) < 0.002] or [np.nan]))
+        sens[label] = _brief(rs, trajs, in_place_m)
+    # a stiffer position servo while the device travels (robot gains Kp/Kv; free motion only — the
+    # press is not simulated here, so its stability in contact is not assessed)
+    from vishap.robot.controller import Gains
+    from vishap.world.closed_loop import make_device
+
+    dev = make_device(pol_scene)
+    dev[1].set_gains(Gains(kp=1200.0, kv=30.0, ramp_s=0.05))
+    rs = [
+        run_approach(pol_scene, tr, World(pol_scene, latency_s=vision.latency_s), vision=vision, device=dev,
+                     seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02)
+        for i, tr in enumerate(trajs)
+    ]
+    sens["device_gains_kp1200_kv30_free_motion"] = _brief(rs, trajs, in_place_m)
     record["sensitivity"] = sens
     record["policies"] = {k: {kk: vv for kk, vv in v.items() if kk not in ("errors_mm", "speeds")} for k, v in policies.items()}
 
