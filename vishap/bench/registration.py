@@ -27,6 +27,9 @@ from vishap.registration.rigid import RigidTransform
 
 HELP = "absolute orientation vs Open3D / OpenCV / SciPy (noise, outliers, speed); camera-robot error vs poses"
 
+#: the setting ``vishap bench all`` uses (about a minute here)
+QUICK_ARGS = ["--trials", "30", "--poses", "4,8,12", "--pose-seeds", "1"]
+
 _EXTENT = np.array([0.20, 0.13, 0.16])  # the reachable box, metres
 
 
