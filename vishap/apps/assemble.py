@@ -224,6 +224,7 @@ def meta(cfg: DemoConfig, st: Stages) -> dict:
         "tip_radius_m": st.tip_radius_m,
         "force_limit_n": st.force_limit_n,
         "object": {"name": st.scene_object.name, "normal": np.asarray(st.scene_object.normal, float),
-                   "centre": np.asarray(st.scene_object.centre, float)},
+                   "centre": np.asarray(st.scene_object.centre, float),
+                   "target": getattr(st.scene_object.mode, "target", "projection")},
         "python": sys.version.split()[0],
     }

@@ -72,7 +72,13 @@ def run_live_loop(scene: str, *, out, source, rig, T_robot_cam, device_path: str
         wall0 = time.monotonic()
         state0, _ = servo.read_state()
         servo_t0 = state0[0]
-        world = World(sc, latency_s=0.0)
+        from vishap.apps.assemble import stereo_noise_m
+        from vishap.world.predictor import KalmanPredictor
+
+        # frames are stamped at the grab on the servo's clock; the world predicts ahead by a typical
+        # vision time (15 ms) and assumes the stereo model's noise at the calibrated camera distance
+        world = World(sc, predictor=KalmanPredictor(meas_std_m=stereo_noise_m(rig, T, sc.objects[0].centre)),
+                      latency_s=0.015)
         t_first = None
         armed = False
         for k, frame in enumerate(source):

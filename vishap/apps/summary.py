@@ -50,6 +50,8 @@ def summarize(meta: dict, ch: dict[str, dict[str, np.ndarray]], *, wall: dict | 
         t = servo["t"]
         n = np.asarray(meta["object"]["normal"], float)
         on_surface = servo["finger_point"] + np.outer(servo["finger_depth"], n)
+        if meta["object"].get("target") == "centre":  # a key: the device belongs at its centre (VisHap §2.3)
+            on_surface = np.broadcast_to(np.asarray(meta["object"]["centre"], float), on_surface.shape)
         aps = approaches(t, servo["finger_depth"], on_surface, servo["device_point"])
         leads = [a.lead_time_s for a in aps]
         known = [x for x in leads if x is not None]

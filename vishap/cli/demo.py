@@ -36,6 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--width", type=int, default=320, help="image width, pixels (default 320)")
     p.add_argument("--height", type=int, default=240, help="image height, pixels (default 240)")
     p.add_argument("--camera-hz", type=float, default=30.0, help="camera rate (default 30)")
+    p.add_argument("--scene-hz", type=float, default=60.0,
+                   help="scene (world update) rate; 1000 runs the world as soon as vision returns (default 60)")
     p.add_argument("--calib", default=None,
                    help="camera_robot.yaml (default: run the camera-robot calibration in simulation first)")
     p.add_argument("--fault", action="append", type=parse_fault, default=[], metavar="KIND:T0:T1",
@@ -61,7 +63,7 @@ def _run(args: argparse.Namespace) -> int:
         from vishap._core.config import validate
 
         fields = {"scene": args.scene, "seed": args.seed, "width": args.width, "height": args.height,
-                  "camera_hz": args.camera_hz, "calib": args.calib, "faults": args.fault,
+                  "camera_hz": args.camera_hz, "scene_hz": args.scene_hz, "calib": args.calib, "faults": args.fault,
                   "video": not args.no_video}
         if args.frames is not None:
             fields["frames"] = args.frames
