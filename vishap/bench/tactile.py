@@ -151,7 +151,7 @@ def run(args: argparse.Namespace) -> dict:
     ax.barh(names, vals, color=["C0", "C1", "C2"])
     ax.axvline(100, color="grey", ls=":", lw=0.8)
     ax.set_xscale("log")
-    ax.set_xlabel("real-time factor (24 pins + 3 regions + glove at 10 kHz), wall clock")
+    ax.set_xlabel("real-time factor, wall clock\n(24 pins + 3 regions + glove at 10 kHz)")
     ax.tick_params(axis="y", labelsize=7)
     ax.set_title("synthesis speed, same control tracks")
     save_figure(fig, out / "synthesis_speed.png")
