@@ -74,3 +74,23 @@ def test_hidden_tip_is_not_visible():
     assert not tip_visible(np.array([-3.0, 50.0]), 0.5, depth)
     assert tip_visible(np.array([10.0, 50.0]), 0.505, depth)
     assert not tip_visible(np.array([10.0, 50.0]), 0.6, depth)  # something 10 cm in front of it
+
+
+def test_alpha_labels_equal_the_flat_label_pass_with_an_occluder():
+    """Labels from the colour pass's alpha equal a flat segmentation pass (rod in front of the finger)."""
+    from vishap.sim.sequence import frame_state, make_renderer, prepare
+
+    p = prepare(SequenceSpec(scene="wall", frames=330, seed=1, width=160, height=120, effects=False))
+    t = next(float(t) for t in p.times if frame_state(p, float(t))[1]["occluder_present"]) + 0.4
+    state, _ = frame_state(p, t)
+    assert state.occluder is not None
+    r = make_renderer(p)
+    try:
+        a, b = r.render(state, labels="alpha"), r.render(state, labels="seg")
+        c = r.render(state, labels="none")
+    finally:
+        r.close()
+    np.testing.assert_array_equal(a.labels_left, b.labels_left)
+    np.testing.assert_array_equal(a.labels_right, b.labels_right)
+    assert (a.labels_left == 1).sum() > 20 and not c.labels_left.any()
+    np.testing.assert_array_equal(a.left, c.left)

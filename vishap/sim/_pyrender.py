@@ -9,7 +9,10 @@ Every module of :mod:`vishap.sim` gets pyrender through :func:`import_pyrender`,
 3. restores ``numpy.infty`` (removed in numpy 2, still used by pyrender 0.1.45 in ``Mesh.bounds``,
    ``Scene.bounds`` and the shadow code) as an alias of ``numpy.inf``,
 4. makes the multisample count of pyrender's offscreen framebuffer a per-renderer setting
-   (pyrender hard-codes 4× MSAA); :func:`set_msaa` switches it (0 = off).
+   (pyrender hard-codes 4× MSAA); :func:`set_msaa` switches it (0 = off),
+5. keeps the EGL display alive when one renderer is deleted: pyrender calls ``eglTerminate`` on
+   the display, which every renderer of the process shares, so closing one renderer broke the
+   others (``eglMakeCurrent`` failed); only the renderer's own context is destroyed now.
 """
 from __future__ import annotations
 
@@ -56,6 +59,18 @@ def import_pyrender(threads: int | None = None):
 
     _r.glRenderbufferStorageMultisample = _storage
     _r.Renderer._configure_main_framebuffer = _configure
+    if os.environ.get("PYOPENGL_PLATFORM") == "egl":
+        from pyrender.platforms import egl as _egl
+
+        def _delete_context(self):
+            from OpenGL.EGL import eglDestroyContext
+
+            if self._egl_display is not None and self._egl_context is not None:
+                eglDestroyContext(self._egl_display, self._egl_context)
+            self._egl_context = None
+            self._egl_display = None
+
+        _egl.EGLPlatform.delete_context = _delete_context
     _pyrender = pyrender
     return pyrender
 

@@ -251,9 +251,17 @@ class StereoRenderer:
             self._offscreen = self.pyrender.OffscreenRenderer(w, h)
         return self._offscreen
 
-    def render(self, state: FrameState) -> RenderedPair:
-        """Render one frame through both cameras."""
+    def render(self, state: FrameState, *, labels: str | None = None) -> RenderedPair:
+        """Render one frame through both cameras.
+
+        ``labels``: how the label images are made — ``alpha`` (from the colour pass's alpha; exact
+        without MSAA), ``seg`` (a flat pass without MSAA), ``none`` (all zero; for timing the colour
+        alone); None picks ``alpha`` without MSAA and ``seg`` with it.
+        """
         pr = self.pyrender
+        mode = labels or ("seg" if self.msaa else "alpha")
+        if mode not in ("alpha", "seg", "none"):
+            raise ConfigError(f"labels must be alpha, seg or none, got {labels!r}", field="labels")
         self._update(state)
         r = self._renderer()
         out = {}
@@ -261,11 +269,16 @@ class StereoRenderer:
         for side in ("left", "right"):
             self.scene.main_camera_node = self._cams[side]
             rgba, depth = r.render(self.scene, flags=pr.RenderFlags.RGBA)
-            labels = ((rgba[..., 3].astype(np.uint16) + _ALPHA_STEP // 2) // _ALPHA_STEP).astype(np.uint8)
-            out[side] = [np.ascontiguousarray(rgba[..., 2::-1]), labels, depth]
-        if self.msaa:
+            if mode == "alpha":
+                lab = ((rgba[..., 3].astype(np.uint16) + _ALPHA_STEP // 2) // _ALPHA_STEP).astype(np.uint8)
+            else:
+                lab = np.zeros(depth.shape, np.uint8)
+            out[side] = [np.ascontiguousarray(rgba[..., 2::-1]), lab, depth]
+        if mode == "seg":
             set_msaa(r, 0)
-            seg_map = {n: np.full(3, lab * _ALPHA_STEP, np.uint8) for n, lab in self._labels.items() if lab}
+            # every node, label 0 included: pyrender leaves nodes out of the map undrawn, and the
+            # occluding rod (label 0) must still hide what is behind it
+            seg_map = {n: np.full(3, v * _ALPHA_STEP, np.uint8) for n, v in self._labels.items()}
             for side in ("left", "right"):
                 self.scene.main_camera_node = self._cams[side]
                 seg, _ = r.render(self.scene, flags=pr.RenderFlags.SEG, seg_node_map=seg_map)

@@ -270,6 +270,11 @@ class Trajectory:
         a, b = max(t - h, self.t_hand), t + h
         return (self._position(a, self._key_at(a)) - self._position(b, self._key_at(b))) / (a - b)
 
+    def first_cycle_end_s(self) -> float:
+        """Time at which the first pass through the script ends (hand-free frames included)."""
+        self._extend(self.t_hand)
+        return self._keys[len(self.spec.segments) - 1].t1
+
     def frame_times(self, n: int) -> np.ndarray:
         return np.arange(int(n), dtype=np.float64) / self.fps
 
