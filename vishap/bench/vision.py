@@ -242,6 +242,54 @@ def _bench_kalman(gt, rng):
     return out
 
 
+def _capsule(c, ang, R, shape=(160, 160), ss=4):
+    """Anti-aliased mask of a finger (cap centre ``c``, radius ``R`` px) pointing away from ``ang``."""
+    H, W = shape
+    yy, xx = (np.mgrid[0:H * ss, 0:W * ss].astype(float) + 0.5) / ss - 0.5
+    d = np.array([np.cos(ang), np.sin(ang)])
+    rel = np.stack([xx - c[0], yy - c[1]], -1)
+    q = rel - np.clip(rel @ d, 0, 300.0)[..., None] * d
+    cov = (np.hypot(q[..., 0], q[..., 1]) <= R).reshape(H, ss, W, ss).mean((1, 3))
+    return (cov >= 0.5).astype(np.uint8) * 255
+
+
+def _bench_detector_constants(rng, n=40):
+    """Detection rate and cap-centre error of the paper's detector for several (r/R, δr/r) choices,
+    against the error of the depth used for r = K/z (scale of the true radius over the assumed)."""
+    from vishap.vision.fingertip import FingertipConfig, detect_fingertip
+
+    cases = []
+    for _ in range(n):
+        c, ang, R = rng.uniform(70, 90, 2), rng.uniform(-np.pi, np.pi), rng.uniform(5, 10)
+        cases.append((c, R, _capsule(c, ang, R)))
+    scales = [0.8, 0.85, 0.92, 1.0, 1.08, 1.15, 1.25]
+    out = {}
+    for ratio, dfrac in ((0.6, 0.8), (0.75, 0.35), (0.7, 0.45), (0.9, 0.2), (0.5, 0.6)):
+        rows = []
+        for sc in scales:
+            ok, err = 0, []
+            for c, R, m in cases:
+                t = detect_fingertip(m, ratio * R / sc, FingertipConfig(delta_r_frac=dfrac))
+                if t.found and np.hypot(*(t.uv - c)) < 1.5:
+                    ok += 1
+                    err.append(np.hypot(*(t.uv - c)))
+            rows.append({"radius_scale": sc, "detection_rate": ok / n,
+                         "rms_px": float(np.sqrt(np.mean(np.square(err)))) if err else None})
+        out[f"r={ratio}R, dr={dfrac}r (square {ratio * (1 + dfrac):.2f}R)"] = rows
+    return out
+
+
+def _chart_constants(rec, path):
+    fig, ax = new_figure(1, 1, figsize=(7, 4.5))
+    for name, rows in rec.items():
+        ax.plot([r["radius_scale"] for r in rows], [r["detection_rate"] for r in rows], "o-", label=name)
+    ax.set(xlabel="true cap radius / radius implied by the depth used", ylabel="detection rate (within 1.5 px)",
+           title="Paper's detector: circle radius and square size (paper gives no values)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return save_figure(fig, path)
+
+
 def run(args: argparse.Namespace) -> dict:
     from vishap.vision.skin_model import SkinModel
 
@@ -261,6 +309,9 @@ def run(args: argparse.Namespace) -> dict:
             rec["kalman"] = _bench_kalman(seq.gt, rng)
             record["sequences"][folder.name] = rec
     record["chart"] = str(_chart(record, out_dir / "vision_speed_accuracy.png"))
+    record["detector_constants"] = _bench_detector_constants(rng)
+    record["chart_detector_constants"] = str(_chart_constants(record["detector_constants"],
+                                                              out_dir / "vision_detector_constants.png"))
     return record
 
 
