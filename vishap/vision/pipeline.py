@@ -46,7 +46,7 @@ class PipelineConfig:
     colour_refine: bool = False     # cap fit on colour unmixed against the background (measured worse on shaded renders)
     filtered_output: bool = True    # report Kalman-filtered tips (else the raw detections)
     full_search_on_miss: bool = True  # a miss in the window triggers a full-frame search of that view
-    max_speed_m_s: float = 1.0      # gate of that search: how far the finger may have moved since its last hit
+    max_speed_m_s: float = 2.0      # gate of that search: how far the finger may have moved since its last hit
     recheck_jump_px: float = 12.0   # a recheck result this far from the track restarts the track there
     tracking: bool = True           # False: always search the full frame
 
