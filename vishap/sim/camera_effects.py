@@ -107,11 +107,18 @@ def apply_effects(
             duv = (tip_uv[side] - state.last_uv[side]) * (fx.exposure_s / dt)
             k = motion_blur_kernel(float(duv[0]), float(duv[1]))
             if k is not None and skin_masks[side].any():
-                blurred = cv2.filter2D(img, -1, k, borderType=cv2.BORDER_REFLECT)
+                # only around the hand: the blend weight is zero farther than r/2 + 4 px from it and
+                # the kernel reads r/2 px beyond that, so a margin of r + 6 px changes no pixel
                 r = k.shape[0]
-                m = cv2.dilate(skin_masks[side].astype(np.uint8), np.ones((r, r), np.uint8)).astype(np.float32)
-                m = cv2.GaussianBlur(m, (0, 0), 1.0)[..., None]
-                img = img * (1 - m) + blurred * m
+                ys, xs = np.nonzero(skin_masks[side])
+                pad = r + 6
+                y0, y1 = max(0, ys.min() - pad), min(h, ys.max() + pad + 1)
+                x0, x1 = max(0, xs.min() - pad), min(w, xs.max() + pad + 1)
+                roi = img[y0:y1, x0:x1]
+                blurred = cv2.filter2D(roi, -1, k, borderType=cv2.BORDER_REFLECT)
+                m = cv2.dilate(skin_masks[side][y0:y1, x0:x1].astype(np.uint8), np.ones((r, r), np.uint8))
+                m = cv2.GaussianBlur(m.astype(np.float32), (0, 0), 1.0)[..., None]
+                img[y0:y1, x0:x1] = roi * (1 - m) + blurred * m
         if fx.defocus:
             img = cv2.GaussianBlur(img, (0, 0), fx.defocus_sigma_px * scale)
         if fx.gain:
