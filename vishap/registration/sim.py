@@ -110,11 +110,14 @@ class SimCalibration:
         return pair.left, pair.right
 
     # the procedure ------------------------------------------------------------------------
-    def run(self, n_poses: int, seed: int = 0, *, robust: bool = False, keep_observations: bool = False) -> dict:
+    def run(self, n_poses: int, seed: int = 0, *, robust: bool = False, keep_observations: bool = False,
+            design: str = "maximin") -> dict:
         """Measure ``n_poses`` usable poses, solve two ways; reports for both.
 
-        Poses follow the maximin sequence of :func:`select_poses`; when the marker is hidden at
-        one, the arm moves on to the next in the sequence (``poses_visited`` counts them).
+        Poses follow the maximin sequence of :func:`select_poses` (``design="random"``: uniform
+        in the box; ``"cluster"``: uniform in a 4 cm cube at the box centre — the comparisons of
+        ``vishap bench registration``); when the marker is hidden at one, the arm moves on to the
+        next in the sequence (``poses_visited`` counts them).
 
         ``closed_form``: absolute orientation of the triangulated points (VisHap's method);
         ``reprojection_refined``: then refined on the marker's image positions (the default
@@ -123,9 +126,21 @@ class SimCalibration:
         self._t = 0.0
         self.renderer.reset_effects()
         # the maximin sequence beyond n: where to go instead when the marker is hidden at a pose
-        targets = select_poses(max(3 * n_poses, n_poses + 12), seed, box=self.box, reachable=self.reachable)
+        m = max(3 * n_poses, n_poses + 12)
+        if design == "maximin":
+            targets = select_poses(m, seed, box=self.box, reachable=self.reachable)
+        elif design in ("random", "cluster"):
+            rng = np.random.default_rng([seed, 0xD5])
+            lo, hi = self.box[:, 0] + 0.01, self.box[:, 1] - 0.01
+            if design == "cluster":
+                c = (lo + hi) / 2
+                lo, hi = c - 0.02, c + 0.02
+            cand = lo + rng.random((4 * m, 3)) * (hi - lo)
+            targets = cand[[self.reachable(p) for p in cand]][:m]
+        else:
+            raise CalibrationError(f"pose design must be maximin, random or cluster, got {design!r}", field="design")
         obs = measure(targets, self.rig, move_to=self._move_to, grab=self._grab, needed=n_poses)
-        out = {"poses": int(n_poses), "poses_visited": len(obs.targets_robot), "seed": int(seed),
+        out = {"poses": int(n_poses), "poses_visited": len(obs.targets_robot), "seed": int(seed), "design": design,
                "render_size": list(self.size)}
         fits = {}
         for name, refine in (("closed_form", False), ("reprojection_refined", True)):
