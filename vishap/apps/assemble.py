@@ -212,6 +212,8 @@ def _overlay(st, pair, row, dev, target, t, extra=()):
 def meta(cfg: DemoConfig, st: Stages) -> dict:
     import vishap
 
+    from vishap.apps.log import code_version
+
     return {
         "format": "vishap.demo_log/1",
         "version": vishap.__version__,
@@ -227,4 +229,5 @@ def meta(cfg: DemoConfig, st: Stages) -> dict:
                    "centre": np.asarray(st.scene_object.centre, float),
                    "target": getattr(st.scene_object.mode, "target", "projection")},
         "python": sys.version.split()[0],
+        "code": code_version(),
     }

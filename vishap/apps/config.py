@@ -45,8 +45,8 @@ class DemoConfig(Schema):
     frames: int | None = Field(default=None, ge=12,
                                description="camera frames to simulate (incl. background frames); None: the demo's script length")
     seed: int = Field(default=0, ge=0)
-    width: int = Field(default=320, ge=64, le=1920, description="image width, pixels")
-    height: int = Field(default=240, ge=48, le=1080, description="image height, pixels")
+    width: int = Field(default=480, ge=64, le=1920, description="image width, pixels")
+    height: int = Field(default=360, ge=48, le=1080, description="image height, pixels")
     camera_hz: float = Field(default=30.0, gt=1.0, le=120.0)
     servo_hz: float = Field(default=1000.0, ge=100.0, le=10000.0)
     tactile_hz: float = Field(default=1000.0, ge=100.0, le=10000.0)

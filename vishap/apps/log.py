@@ -16,7 +16,33 @@ import numpy as np
 
 from vishap._core.errors import ConfigError
 
-__all__ = ["Channel", "SignalLog", "load_log", "write_frame_png", "read_frame_png"]
+__all__ = ["Channel", "SignalLog", "load_log", "write_frame_png", "read_frame_png", "code_version"]
+
+
+def code_version() -> dict:
+    """Which code made a log: the git commit of the checkout holding ``vishap`` (and whether it had
+    uncommitted changes) and a digest of the package's data files (models, configuration)."""
+    import hashlib
+    import subprocess
+
+    import vishap
+
+    root = Path(vishap.__file__).resolve().parent
+    out: dict = {"version": vishap.__version__}
+    try:
+        out["git"] = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
+                                    timeout=5).stdout.strip() or None
+        out["dirty"] = bool(subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no",
+                                            "--", "."], capture_output=True, text=True, timeout=5).stdout.strip())
+    except (OSError, subprocess.SubprocessError):
+        out["git"], out["dirty"] = None, None
+    h = hashlib.sha256()
+    for f in sorted(root.rglob("*")):
+        if f.suffix in (".py", ".yaml", ".yml", ".npz", ".json", ".toml") and "__pycache__" not in f.parts:
+            h.update(f.relative_to(root).as_posix().encode())
+            h.update(f.read_bytes())
+    out["package_sha256"] = h.hexdigest()[:16]
+    return out
 
 
 class Channel:

@@ -30,8 +30,8 @@ STAGES = ("segment", "detect", "stereo", "wait for scene tick", "registration + 
 def add_arguments(parser) -> None:
     parser.add_argument("--log", default=None, help="read this demo log instead of running a demo")
     parser.add_argument("--frames", type=int, default=90, help="frames of the demo to run (default 90)")
-    parser.add_argument("--width", type=int, default=320)
-    parser.add_argument("--height", type=int, default=240)
+    parser.add_argument("--width", type=int, default=480)
+    parser.add_argument("--height", type=int, default=360)
     parser.add_argument("--seed", type=int, default=0)
 
 

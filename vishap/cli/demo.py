@@ -33,8 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="output folder (video, plots, log.npz, summary.json)")
     p.add_argument("--frames", type=int, default=None, help="camera frames (default: the scene's script length)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--width", type=int, default=320, help="image width, pixels (default 320)")
-    p.add_argument("--height", type=int, default=240, help="image height, pixels (default 240)")
+    p.add_argument("--width", type=int, default=480, help="image width, pixels (default 480)")
+    p.add_argument("--height", type=int, default=360, help="image height, pixels (default 360)")
     p.add_argument("--camera-hz", type=float, default=30.0, help="camera rate (default 30)")
     p.add_argument("--scene-hz", type=float, default=60.0,
                    help="scene (world update) rate; 1000 runs the world as soon as vision returns (default 60)")
