@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from vishap._core.errors import ConfigError
-from vishap.robot.kinematics import fk, ik
+from vishap.robot.kinematics import fk, ik, link_points
 from vishap.sim.device import REACHABLE_BOX
 from vishap.sim.sequence import SequenceSpec, frame_state, prepare
 from vishap.sim.state import TIP_RADIUS_M
@@ -25,6 +25,7 @@ def test_finger_touches_the_passive_object_on_the_surface(scene, seed):
         ee = st.ee_robot
         assert np.all(ee >= REACHABLE_BOX[0] - 1e-12) and np.all(ee <= REACHABLE_BOX[1] + 1e-12)
         np.testing.assert_allclose(fk(ik(ee)), ee, atol=1e-9)
+        np.testing.assert_allclose(st.device_points_robot[1:], link_points(ik(ee)), atol=1e-12)
         np.testing.assert_allclose(st.device_points_robot[-1], ee, atol=1e-9)
         if not geo["in_contact"]:
             continue

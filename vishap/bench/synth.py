@@ -37,7 +37,7 @@ def _res(text: str):
 
 def add_arguments(parser) -> None:
     parser.add_argument("--resolution", default="640x480", help="image size for the speed part (WxH)")
-    parser.add_argument("--pairs", type=int, default=14, help="timed stereo pairs per configuration")
+    parser.add_argument("--pairs", type=int, default=20, help="timed stereo pairs per configuration")
     parser.add_argument("--vis-resolution", default="320x240", help="image size for the visibility part")
     parser.add_argument("--vis-stride", type=int, default=3, help="render every n-th frame for visibility")
     parser.add_argument("--seed", type=int, default=0)
@@ -77,35 +77,40 @@ def _speed(res, n_pairs: int, seed: int) -> dict:
             r.render(states[0])  # warm-up: GL context, shaders, buffers
         # interleave configurations frame by frame so that machine load hits all alike
         durations = {c[0]: [] for c in configs}
+        cpu = {c[0]: [] for c in configs}  # CPU time of all the process's threads (llvmpipe's included)
         disagree = {c[0]: [] for c in configs}
         for k, s in enumerate(states):
             # rotate the order per frame: the first render after switching GL context is not favoured
             for name, msaa, mode, effects in configs[k % len(configs):] + configs[:k % len(configs)]:
                 r = fx if effects else renderers[msaa]
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 out = r.render(s, labels=mode)
                 durations[name].append(time.perf_counter() - t0)
+                cpu[name].append(time.process_time() - c0)
                 if mode != "none":
                     disagree[name].append(0.5 * (np.mean(out.labels_left != ref[k].labels_left)
                                                  + np.mean(out.labels_right != ref[k].labels_right)))
         for name, msaa, mode, effects in configs:
             d = np.array(durations[name])
             rows[name] = {"msaa": msaa, "labels": mode, "effects": effects, "ms_per_pair": 1e3 * float(np.median(d)),
+                          "cpu_ms_per_pair": 1e3 * float(np.median(cpu[name])),
                           "pairs_per_s": float(1.0 / np.median(d)),
                           "label_pixels_wrong_pct": (100.0 * float(np.mean(disagree[name])) if disagree[name] else None)}
     finally:
         for r in (*renderers.values(), fx):
             r.close()
-    base0 = rows["colour only (no labels)"]["ms_per_pair"]
-    base4 = rows["MSAA 4, colour only"]["ms_per_pair"]
-    costs = {
-        "alpha_labels_ms": rows["labels from alpha (default)"]["ms_per_pair"] - base0,
-        "flat_label_pass_ms": rows["labels by flat 2nd pass"]["ms_per_pair"] - base0,
-        "flat_label_pass_with_msaa_ms": rows["MSAA 4 + flat label pass"]["ms_per_pair"] - base4,
-        "msaa4_colour_ms": base4 - base0,
-        "camera_effects_ms": rows["default + camera effects"]["ms_per_pair"] - rows["labels from alpha (default)"]["ms_per_pair"],
-    }
-    return {"resolution": list(res), "pairs": n_pairs, "configs": rows, "costs_ms_per_pair": costs}
+    def costs(key):
+        c = {name: r[key] for name, r in rows.items()}
+        return {
+            "alpha_labels_ms": c["labels from alpha (default)"] - c["colour only (no labels)"],
+            "flat_label_pass_ms": c["labels by flat 2nd pass"] - c["colour only (no labels)"],
+            "flat_label_pass_with_msaa_ms": c["MSAA 4 + flat label pass"] - c["MSAA 4, colour only"],
+            "msaa4_colour_ms": c["MSAA 4, colour only"] - c["colour only (no labels)"],
+            "camera_effects_ms": c["default + camera effects"] - c["labels from alpha (default)"],
+        }
+
+    return {"resolution": list(res), "pairs": n_pairs, "configs": rows, "costs_ms_per_pair": costs("ms_per_pair"),
+            "costs_cpu_ms_per_pair": costs("cpu_ms_per_pair")}
 
 
 def _visibility(scenes, res, stride: int, seed: int) -> dict:

@@ -93,7 +93,10 @@ def encounter_ee(spec, passive, tip_robot, depth_m: float = 0.0) -> np.ndarray:
 
 
 def device_links(ee_robot) -> np.ndarray:
-    """(4, 3) link joints base → end-effector of the PHANToM at ``ee_robot`` (:mod:`vishap.robot.kinematics`)."""
+    """(5, 3) polyline of the PHANToM at ``ee_robot``: its foot on the table, then
+    :func:`vishap.robot.kinematics.link_points` (base, shoulder, elbow, end-effector) of ``ik(ee)``."""
     from vishap.robot.kinematics import ik, link_points
 
-    return link_points(ik(np.asarray(ee_robot, dtype=np.float64)))
+    pts = link_points(ik(np.asarray(ee_robot, dtype=np.float64)))
+    foot = np.array([pts[0, 0], pts[0, 1], TABLE_Z_M])  # the base stands on the table
+    return np.vstack([foot, pts])
