@@ -13,6 +13,7 @@ times the left tracker lost the finger while the tip stayed visible.
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -110,6 +111,8 @@ def evaluate_sequence(folder, *, skin_model: SkinModel | None = None, config: Pi
     gt = seq.gt
     n = len(seq) if max_frames is None else min(len(seq), max_frames)
     cfg = config or PipelineConfig()
+    if "hand_free_frames" in gt:  # learn the background on exactly the sequence's hand-free frames
+        cfg = dataclasses.replace(cfg, learn_frames=int(gt["hand_free_frames"]))
     pipe = VisionPipeline(seq.rig, skin_model=skin_model, config=cfg)
     estimates, masks_counts = [], np.zeros(4, np.int64)
     frames_for_seg = []
