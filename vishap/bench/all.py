@@ -78,7 +78,7 @@ def _run_one(name: str, mod, out: Path, *, quick: bool, timeout: float) -> dict:
     (sub / "stderr.txt").write_text(err or "")
     return {
         "name": name,
-        "command": " ".join(cmd[1:]),
+        "command": " ".join(cmd[3:]),
         "ok": rc == 0,
         "returncode": rc,
         "wall_s": round(wall, 2),
