@@ -21,7 +21,8 @@ __all__ = ["Channel", "SignalLog", "load_log", "write_frame_png", "read_frame_pn
 
 def code_version() -> dict:
     """Which code made a log: the git commit of the checkout holding ``vishap`` (and whether it had
-    uncommitted changes) and a digest of the package's data files (models, configuration)."""
+    uncommitted changes) and ``stages_sha256``, a digest of the code and data of the stages a
+    replay re-runs (vision, world, tactile and the apps themselves)."""
     import hashlib
     import subprocess
 
@@ -37,11 +38,12 @@ def code_version() -> dict:
     except (OSError, subprocess.SubprocessError):
         out["git"], out["dirty"] = None, None
     h = hashlib.sha256()
-    for f in sorted(root.rglob("*")):
-        if f.suffix in (".py", ".yaml", ".yml", ".npz", ".json", ".toml") and "__pycache__" not in f.parts:
-            h.update(f.relative_to(root).as_posix().encode())
-            h.update(f.read_bytes())
-    out["package_sha256"] = h.hexdigest()[:16]
+    for sub in ("_core", "vision", "world", "tactile", "apps"):
+        for f in sorted((root / sub).rglob("*")):
+            if f.suffix in (".py", ".yaml", ".yml", ".npz", ".json", ".toml") and "__pycache__" not in f.parts:
+                h.update(f.relative_to(root).as_posix().encode())
+                h.update(f.read_bytes())
+    out["stages_sha256"] = h.hexdigest()[:16]
     return out
 
 

@@ -12,7 +12,7 @@ order and compares their outputs with the logged ones:
 - tactile: every tick's contact sample → the renderer's drive signals and contact state.
 
 Wall-clock timings are not outputs and are not compared. The log records the code that made it
-(git commit and a digest of the package); replaying with other code warns, since a changed model
+(git commit and a digest of the vision, world, tactile and apps code); replaying with other code warns, since a changed model
 or algorithm legitimately changes the outputs. ``identical`` is true when every
 compared array matches within ``atol`` (0: bit for bit).
 """
@@ -76,12 +76,12 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
     from vishap.apps.log import code_version
 
     now, then = code_version(), meta.get("code", {})
-    report["same_code"] = bool(then) and now.get("package_sha256") == then.get("package_sha256")
+    report["same_code"] = bool(then) and now.get("stages_sha256") == then.get("stages_sha256")
     if not report["same_code"]:
         import sys
 
-        print(f"vishap replay: warning: the log was made by other code (package {then.get('package_sha256')}, "
-              f"git {then.get('git')}) than this (package {now['package_sha256']}, git {now.get('git')}); "
+        print(f"vishap replay: warning: the log was made by other stage code (digest {then.get('stages_sha256')}, "
+              f"git {then.get('git')}) than this (digest {now['stages_sha256']}, git {now.get('git')}); "
               "outputs may differ", file=sys.stderr)
 
     # -- vision -----------------------------------------------------------------------------------
