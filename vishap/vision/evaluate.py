@@ -178,9 +178,33 @@ def score(estimates, gt: dict, seg_counts: np.ndarray, *, keep_tracks: bool = Fa
         "frames_tracked": int(len(ms_tracked)),
         "frames_full": int(len(ms_full)),
     }
+    if "phase" in gt and "phase_names" in gt:
+        out["by_phase"] = _by_phase(estimates, gt, visible, found)
     if keep_tracks:
         out["tracks"] = [track_record(e) for e in estimates]
     return out
+
+
+def _by_phase(estimates, gt, visible, found) -> dict:
+    """Detection rate and tip errors per trajectory phase (approach, press, slide, occlusion …)."""
+    n = len(estimates)
+    phase = np.asarray(gt["phase"])[:n]
+    names = [str(x) for x in np.asarray(gt["phase_names"])]
+    res = {}
+    for k in np.unique(phase):
+        sel = phase == k
+        vis = sel & visible
+        hit = vis & found
+        e2 = [np.r_[estimates[i].uv_left - gt["tip_uv_left"][i], estimates[i].uv_right - gt["tip_uv_right"][i]]
+              for i in np.flatnonzero(hit)]
+        e3 = [np.linalg.norm(estimates[i].p_cam - gt["tip_cam"][i]) for i in np.flatnonzero(hit)]
+        name = names[int(k)] if 0 <= int(k) < len(names) else str(int(k))
+        res[name] = {"frames": int(sel.sum()), "visible": int(vis.sum()),
+                     "detection_rate": float(hit.sum() / vis.sum()) if vis.sum() else None,
+                     "tip2d_rms_px": float(np.sqrt(np.mean(np.square(e2)))) if e2 else None,
+                     "tip3d_rms_mm": float(np.sqrt(np.mean(np.square(e3))) * 1e3) if e3 else None,
+                     "false_detections": int((sel & ~visible & found).sum())}
+    return res
 
 
 def track_record(e) -> dict:
