@@ -43,6 +43,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fault", action="append", type=parse_fault, default=[], metavar="KIND:T0:T1",
                    help=f"inject a fault in [T0, T1) s; KIND one of {', '.join(FAULT_KINDS)} (repeatable)")
     p.add_argument("--no-video", action="store_true", help="skip the MP4 (faster)")
+    p.add_argument("--no-frames", action="store_true",
+                   help="do not keep the lossless frames (≈ 0.3 MB per pair at 480x360; replay needs them)")
     p.add_argument("--live", action="store_true", help="run on cameras and a real device")
     p.add_argument("--cameras", default="0,1", help="live: camera indices LEFT,RIGHT or one side-by-side index")
     p.add_argument("--rig", default=None, help="live: stereo rig file (default calib/rig.yaml)")
@@ -64,7 +66,7 @@ def _run(args: argparse.Namespace) -> int:
 
         fields = {"scene": args.scene, "seed": args.seed, "width": args.width, "height": args.height,
                   "camera_hz": args.camera_hz, "scene_hz": args.scene_hz, "calib": args.calib, "faults": args.fault,
-                  "video": not args.no_video}
+                  "video": not args.no_video, "save_frames": not args.no_frames}
         if args.frames is not None:
             fields["frames"] = args.frames
         cfg = validate(DemoConfig, fields, file=None)
