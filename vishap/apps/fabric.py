@@ -19,7 +19,7 @@ def script(hidden_s: float) -> FingerScript:
             (0.25, (0.240, 0.030, Z + 0.055)),
             (1.00, (0.220, 0.005, Z)),           # approach and touch
             (0.30, (0.220, 0.005, Z - 0.002)),   # light press
-            (0.40, (0.220, 0.005, Z - 0.002)),   # rest: distributed contact
+            (0.40, (0.220, 0.005, Z - 0.002)),   # rest: a steady press
             (0.90, (0.185, 0.005, Z - 0.002)),   # slow stroke (≈ 0.04 m/s mean)
             (0.30, (0.215, 0.005, Z - 0.002)),   # fast stroke back (≈ 0.1 m/s mean, 0.19 peak)
             (0.50, (0.215, 0.005, Z + 0.045)),   # lift
