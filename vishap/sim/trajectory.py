@@ -16,7 +16,8 @@ human point-to-point reaches). A target is one of
 Segments may also set ``dir`` (finger direction), ``flexion``, ``roll``, ``light`` (intensity
 scale, interpolated), ``occluder: true`` (a rod crosses the line of sight) and ``hand_visible``.
 The script repeats for as many frames as asked; every repetition draws its own jitter (positions
-±``jitter.position_m``, durations ±``jitter.duration``) from the sequence's seed, and a small
+±``jitter.position_m``, durations ±``jitter.duration``, the hand's pose: finger direction
+±``jitter.dir_deg``, roll ±``jitter.roll_deg``, bend ±``jitter.flexion``) from the sequence's seed, and a small
 physiological tremor (8–12 Hz, ``tremor_m``) is added while the finger is not in contact.
 The first ``hand_free_frames`` frames show no hand (VisHap learns its background from them).
 """
@@ -74,8 +75,11 @@ class SegmentSpec(Schema):
 
 
 class JitterSpec(Schema):
-    position_m: float = Field(default=0.003, ge=0.0, le=0.02)
-    duration: float = Field(default=0.15, ge=0.0, lt=0.9)
+    position_m: float = Field(default=0.003, ge=0.0, le=0.02)   # targets, ± m per axis
+    duration: float = Field(default=0.15, ge=0.0, lt=0.9)       # durations, ± fraction
+    dir_deg: float = Field(default=6.0, ge=0.0, le=20.0)       # finger direction: yaw ±, pitch ± half of it
+    roll_deg: float = Field(default=10.0, ge=0.0, le=45.0)     # hand roll about the finger, ±
+    flexion: float = Field(default=0.05, ge=0.0, le=0.3)       # bend, ±
 
 
 class TrajectorySpec(Schema):
@@ -191,13 +195,23 @@ class Trajectory:
                 p = np.asarray(sp.start_tip, dtype=np.float64)
                 d = _unit(sp.finger_dir)
                 f, r, lt, t_now = sp.flexion, sp.roll, 1.0, self.t_hand
+            # this repetition's hand pose: finger direction turned by a small yaw and pitch, roll
+            # and bend offset; segments without their own dir/flexion/roll keep the cycle's
+            J = sp.jitter
+            yaw, pitch = np.radians(rng.uniform(-J.dir_deg, J.dir_deg)), np.radians(rng.uniform(-J.dir_deg, J.dir_deg) / 2)
+            d_roll, d_flex = np.radians(rng.uniform(-J.roll_deg, J.roll_deg)), rng.uniform(-J.flexion, J.flexion)
+            turn = lambda v: _turn(v, yaw, pitch)  # noqa: E731
+            dc, fc, rc = turn(sp.finger_dir), float(np.clip(sp.flexion + d_flex, 0, 1)), sp.roll + d_roll
+            if not self._keys:
+                d, f, r = dc, fc, rc
             for seg in sp.segments:
-                dur = seg.duration_s * (1.0 + rng.uniform(-sp.jitter.duration, sp.jitter.duration))
-                jit = rng.uniform(-sp.jitter.position_m, sp.jitter.position_m, size=3)
+                dur = seg.duration_s * (1.0 + rng.uniform(-J.duration, J.duration))
+                jit = rng.uniform(-J.position_m, J.position_m, size=3)
                 p1 = self._target(seg, p, jit)
-                d1 = _unit(seg.dir) if seg.dir is not None else d
-                f1 = seg.flexion if seg.flexion is not None else f
-                r1 = seg.roll if seg.roll is not None else r
+                dc = turn(seg.dir) if seg.dir is not None else dc
+                fc = float(np.clip(seg.flexion + d_flex, 0, 1)) if seg.flexion is not None else fc
+                rc = seg.roll + d_roll if seg.roll is not None else rc
+                d1, f1, r1 = dc, fc, rc
                 l1 = seg.light if seg.light is not None else lt
                 stays = seg.tip is None and seg.hover is None and seg.contact is None
                 contact = seg.contact is not None or (stays and bool(self._keys) and self._keys[-1].contact)
@@ -268,7 +282,7 @@ class Trajectory:
         if t < self.t_hand:
             return np.zeros(3)
         a, b = max(t - h, self.t_hand), t + h
-        return (self._position(a, self._key_at(a)) - self._position(b, self._key_at(b))) / (a - b)
+        return (self.sample(b).tip_robot - self.sample(a).tip_robot) / (b - a)
 
     def first_cycle_end_s(self) -> float:
         """Time at which the first pass through the script ends (hand-free frames included)."""
@@ -277,6 +291,18 @@ class Trajectory:
 
     def frame_times(self, n: int) -> np.ndarray:
         return np.arange(int(n), dtype=np.float64) / self.fps
+
+
+def _turn(v, yaw: float, pitch: float) -> np.ndarray:
+    """Unit vector ``v`` turned by ``yaw`` about the robot z axis and tilted by ``pitch`` (rad) towards/away from z."""
+    v = _unit(v)
+    c, s_ = np.cos(yaw), np.sin(yaw)
+    v = np.array([c * v[0] - s_ * v[1], s_ * v[0] + c * v[1], v[2]])
+    h = np.hypot(v[0], v[1])
+    if h < 1e-9:
+        return v
+    el = np.arctan2(v[2], h) + pitch
+    return np.array([v[0] / h * np.cos(el), v[1] / h * np.cos(el), np.sin(el)])
 
 
 def _unit(v) -> np.ndarray:
