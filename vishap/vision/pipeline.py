@@ -41,8 +41,10 @@ class PipelineConfig:
     acquire_radius_band: tuple[float, float] = (0.75, 1.06)  # cap radius / finger_radius_m accepted when
     #   (re)acquiring over the full frame; measured on renders: index tip 5–95 % 0.75–1.04, thumb/knuckles median 1.07
     learn_frames: int = 10
-    recheck_frames: int = 0         # while tracking, search the full frame every this many frames (0: never;
-    #   measured: 15 jumped from a healthy index track to the thumb as the index went behind the plate)
+    recheck_frames: int = 15        # while tracking, search the full frame every this many frames (0: never);
+    #   measured on the standard 'vishap synth' trajectories: fixes a lock on the wrong finger taken
+    #   at the hand's entry (button approach 32.7 → 0.23 px), but on renders where the index goes
+    #   behind the device's plate it can jump to the thumb
     colour_refine: bool = False     # cap fit on colour unmixed against the background (measured worse on shaded renders)
     filtered_output: bool = True    # report Kalman-filtered tips (else the raw detections)
     full_search_on_miss: bool = True  # a miss in the window triggers a full-frame search of that view
