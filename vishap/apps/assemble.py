@@ -225,6 +225,7 @@ def meta(cfg: DemoConfig, st: Stages) -> dict:
         "mount_offset": st.mount_offset,
         "tip_radius_m": st.tip_radius_m,
         "force_limit_n": st.force_limit_n,
+        "continuous_force_n": float(st.plant.limits.continuous_force_n),
         "object": {"name": st.scene_object.name, "normal": np.asarray(st.scene_object.normal, float),
                    "centre": np.asarray(st.scene_object.centre, float),
                    "target": getattr(st.scene_object.mode, "target", "projection")},

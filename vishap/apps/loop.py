@@ -242,6 +242,7 @@ class Demo:
             X_d=X_log, guard=GUARD_CODES[action], F_cmd=F_cmd, F_pd=F_pd,
             F_law=np.zeros(3) if F_law is None else np.asarray(F_law, float), law_active=F_law is not None,
             F_contact=F_on_finger, in_contact=bool(np.any(F_on_dev)),
+            saturated=bool(ctrl.saturated), heat_n2=float(ctrl.heat),
             finger_point=pad, finger_velocity=v_pad, finger_depth=-float(obj.height(pad)), device_depth=-float(obj.height(p_dev)),
             tick_us=1e6 * dt_wall)
 

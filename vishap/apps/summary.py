@@ -69,6 +69,13 @@ def summarize(meta: dict, ch: dict[str, dict[str, np.ndarray]], *, wall: dict | 
         out["max_force_n"] = float(np.max(np.linalg.norm(servo["F_cmd"], axis=1)))
         out["max_contact_force_n"] = float(np.max(np.linalg.norm(servo["F_contact"], axis=1)))
         out["force_limit_n"] = meta["force_limit_n"]
+        if "saturated" in servo:
+            # ticks on which the controller clipped its force, and ticks on which its heating estimate
+            # held it to the continuous force (robot controller: |F|² low-passed vs continuous²)
+            out["force_saturated_ticks"] = int(np.sum(servo["saturated"]))
+            cont = meta.get("continuous_force_n")
+            if cont:
+                out["thermal_limited_ticks"] = int(np.sum(servo["heat_n2"] > cont * cont))
         out["servo_ticks"] = int(t.size)
         tick_us = servo["tick_us"]
         out["servo_tick_us_median"] = float(np.median(tick_us))
