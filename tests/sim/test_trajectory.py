@@ -117,5 +117,7 @@ def test_unknown_names_and_values():
         prepare(SequenceSpec(scene="wall", frames=3, trajectory="nope"))
     with pytest.raises(ConfigError, match="frames"):
         prepare(SequenceSpec(scene="wall", frames=-1))
+    with pytest.raises(ConfigError, match="written for scenes"):
+        prepare(SequenceSpec(scene="button", frames=3, trajectory="wall"))
     with pytest.raises(ConfigError, match="lighting"):
         prepare(SequenceSpec(scene="wall", frames=3, lighting="disco"))

@@ -135,6 +135,9 @@ def prepare(spec: SequenceSpec) -> Prepared:
     scene = load_scene_spec(spec.scene)
     passive = PassiveObject(shape=scene.passive_shape, size_m=scene.passive_size_m)
     tspec, tfile = load_trajectory(spec.trajectory or scene.name)
+    if scene.name not in tspec.scenes:
+        raise ConfigError(f"trajectory {tspec.name!r} is written for scenes {tspec.scenes}, not {scene.name!r}",
+                          file=tfile, field="scenes")
     if spec.fps is not None:
         tspec = tspec.model_copy(update={"fps": float(spec.fps)})
     if spec.hand_free_frames is not None:
