@@ -60,3 +60,13 @@ def test_prior_breaks_ties_and_fill_ratio_variant():
     assert np.hypot(*(a.uv - (40, 40))) < 0.6 and np.hypot(*(b.uv - (40, 110))) < 0.6
     loose = detect_fingertip(m, 5.0, FingertipConfig(fill_ratio=0.9), prior_uv=(40, 40))
     assert loose.found and loose.n_candidates >= a.n_candidates
+
+
+def test_nearest_first_search_gives_the_full_search_result():
+    import vishap.vision.fingertip as F
+
+    m = np.maximum(capsule((40, 40), 0.3, 8), capsule((40, 112), -0.2, 8))
+    for prior in ((38, 41), (44, 109), (80, 80)):
+        fast = detect_fingertip(m, 4.8, prior_uv=prior)
+        full = F.detect_fingertips(m, 4.8, prior_uv=prior, max_tips=2)[0]  # no shortcut with 2 tips
+        assert fast.found and np.allclose(fast.uv_pixel, full.uv_pixel) and np.allclose(fast.uv, full.uv)

@@ -143,14 +143,30 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
     ys = pts[:, 1].astype(np.intp)
     # steps 6–9 on the square ring
     off = square_ring_offsets(r2)
-    ring = mask[ys[:, None] + off[None, :, 1], xs[:, None] + off[None, :, 0]] > 0  # (M, 8 r2)
-    s_square = ring.sum(axis=1)
     n_half = 4 * r2
-    n_diag = (ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
-    keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2) & (n_diag <= config.max_diagonal_pairs)
-    if not np.any(keep):
+
+    def ring_test(xs, ys):
+        ring = mask[ys[:, None] + off[None, :, 1], xs[:, None] + off[None, :, 0]] > 0  # (M, 8 r2)
+        s_square = ring.sum(axis=1)
+        n_diag = (ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
+        keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2) \
+            & (n_diag <= config.max_diagonal_pairs)
+        return xs[keep], ys[keep], ring[keep]
+
+    if prior_uv is not None and max_tips == 1 and scores is None and xs.size > 48:
+        # equal scores: the winner is the valid candidate nearest the prior, so test candidates in
+        # order of distance, a chunk at a time, and stop at the first chunk holding a valid one
+        order = np.argsort((xs - prior_uv[0]) ** 2 + (ys - prior_uv[1]) ** 2, kind="stable")
+        for k in range(0, order.size, 32):
+            sel = order[k: k + 32]
+            cx, cy, cring = ring_test(xs[sel], ys[sel])
+            if cx.size:
+                break
+        xs, ys, ring = cx, cy, cring
+    else:
+        xs, ys, ring = ring_test(xs, ys)
+    if xs.size == 0:
         return []
-    xs, ys, ring = xs[keep], ys[keep], ring[keep]
     score = np.full(xs.size, float(area)) if scores is None else scores[ys, xs].astype(np.float64)
     # step 10: best score first; ties broken by the prior or by extremity
     if prior_uv is not None:
