@@ -7,6 +7,7 @@ SOURCE is a folder written by ``vishap synth``, a pair of videos ``LEFT,RIGHT`` 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 
 
@@ -45,9 +46,7 @@ def _run(args: argparse.Namespace) -> int:
     pipe = VisionPipeline(rig, skin_model=SkinModel.load(args.skin) if args.skin else None,
                           config=PipelineConfig(tracking=not args.full_frame))
     rows = []
-    for k, f in enumerate(frames):
-        if args.max_frames is not None and k >= args.max_frames:
-            break
+    for f in itertools.islice(frames, args.max_frames):
         rows.append(track_record(pipe.process(f)))
     found = sum(r["found"] for r in rows)
     record = {"source": args.source, "frames": len(rows), "found": found,
