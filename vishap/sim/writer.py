@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import io
 import shutil
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 import tempfile
 import zipfile
 from pathlib import Path
@@ -28,7 +30,7 @@ from vishap.sim.sequence import SequenceSpec, constants, make_renderer, prepare,
 
 __all__ = ["write_sequence", "save_npz_deterministic", "frame_name"]
 
-_PNG = [cv2.IMWRITE_PNG_COMPRESSION, 3]
+_PNG = [cv2.IMWRITE_PNG_COMPRESSION, 1]  # noisy 640×480 frames: 25 ms vs 38 ms at level 3, +1 % size
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
 
@@ -118,18 +120,28 @@ def _write_into(folder: Path, p, progress: bool) -> None:
     p.rig.save(folder / "rig.yaml")
     rows = []
     renderer = make_renderer(p)
+    # PNG encoding (which releases the GIL) overlaps the rendering of the next frame; at most
+    # two frames are waiting, and the first failure is raised
+    pool = ThreadPoolExecutor(max_workers=2)
+    pending: deque = deque()
     try:
         frames = render_frames(p, renderer)
         bar = tqdm(frames, total=len(p.times), desc=f"synth {p.scene_spec.name}", unit="frame", disable=not progress)
         for _, pair, row in bar:
             name = frame_name(row["index"])
-            _write_png(dirs["left"] / name, pair.left)
-            _write_png(dirs["right"] / name, pair.right)
-            _write_png(dirs["labels/left"] / name, pair.labels_left)
-            _write_png(dirs["labels/right"] / name, pair.labels_right)
+            for sub, img in (("left", pair.left), ("right", pair.right), ("labels/left", pair.labels_left),
+                             ("labels/right", pair.labels_right)):
+                pending.append(pool.submit(_write_png, dirs[sub] / name, img))
+            while len(pending) > 8:
+                pending.popleft().result()
             rows.append(row)
+        while pending:
+            pending.popleft().result()
         consts = constants(p, renderer)
     finally:
+        for f in pending:
+            f.cancel()
+        pool.shutdown(wait=True)
         renderer.close()
     gt = {k: np.stack([np.asarray(r[k]) for r in rows]) for k in rows[0]}
     gt["index"] = gt["index"].astype(np.int64)
