@@ -162,7 +162,7 @@ def _charts(speed: dict, vis: dict, out_dir) -> list[str]:
             ax.text(r["ms_per_pair"], 0.0, " " + name, rotation=90, va="bottom", fontsize=7, color="grey")
             continue
         ax.plot(r["ms_per_pair"], y, "o")
-        ax.annotate(name, (r["ms_per_pair"], y), fontsize=7, xytext=(4, 4 if i % 2 else -11), textcoords="offset points")
+        ax.annotate(name, (r["ms_per_pair"], y), fontsize=7, xytext=(4, (4, -11, 14)[i % 3]), textcoords="offset points")
     w, h = speed["resolution"]
     ax.set_xlabel(f"ms per stereo pair at {w}×{h} (median)")
     ax.set_ylabel("label pixels differing from the flat pass, %")
