@@ -36,6 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--trajectory", default=None, help="trajectory name or .yaml file (default: the scene's)")
     p.add_argument("--fps", type=float, default=None, help="frame rate (default: the trajectory's, 30 Hz)")
     p.add_argument("--hand-free", type=int, default=None, help="frames without the hand at the start (default 10)")
+    p.add_argument("--start", type=float, default=0.0, metavar="SECONDS",
+                   help="script time of the first frame (default 0; later starts skip the hand-free frames)")
     p.add_argument("--lighting", choices=LIGHTING, default="constant", help="light change during the sequence")
     p.add_argument("--skin-tone", type=_tone, default=None,
                    help="light, medium, tan, dark or a number 0 (light) … 1 (dark); default: chosen by seed")
@@ -59,7 +61,8 @@ def _run(args: argparse.Namespace) -> int:
     spec = SequenceSpec(scene=args.scene, frames=args.frames, seed=args.seed, trajectory=args.trajectory,
                         width=args.resolution[0], height=args.resolution[1], rig=rig, lighting=args.lighting,
                         skin_tone=args.skin_tone, background=args.background, occlusion=args.occlusion,
-                        effects=args.effects, msaa=args.msaa, fps=args.fps, hand_free_frames=args.hand_free)
+                        effects=args.effects, msaa=args.msaa, fps=args.fps, hand_free_frames=args.hand_free,
+                        start_s=args.start)
     _check_render_args(spec)
     out = write_sequence(args.out, spec, overwrite=args.overwrite, progress=not args.quiet)
     from vishap.sim.reader import SyntheticSequence
