@@ -45,3 +45,25 @@ def test_live_servo_follows_targets_and_reports_lateness():
     assert report.lateness["ticks"] == report.steps
     assert report.realtime
     assert np.isfinite(report.step_us_median)
+
+
+def test_live_servo_clock_read_from_the_parent_matches_the_servo_time():
+    """LiveServo.now() is the servo's simulated time: equal to the time the servo stamps its state with
+    (within a few periods), and strictly increasing however stale the state mailbox is."""
+    servo = LiveServo(functools.partial(make_point_mass), target_size=1, state_size=3, realtime=False)
+    servo.start()
+    try:
+        time.sleep(0.2)
+        gaps, nows = [], []
+        for _ in range(20):
+            state, _ = servo.read_state()
+            now = servo.now()
+            gaps.append(now - state[0])
+            nows.append(now)
+            time.sleep(0.005)
+    finally:
+        servo.stop()
+    assert np.all(np.diff(nows) > 0)
+    # the state is at most a few periods old on an idle machine; a loaded one may delay the servo's
+    # write, never make the state newer than the servo's clock
+    assert np.median(gaps) < 0.02 and min(gaps) > -0.0015, gaps

@@ -4,7 +4,7 @@ latest-value mailboxes (issue 9 parts 1 and 3; VisHap §2).
 
 Frames never cross into the servo process: only the 6-value target record
 ``[x, y, z, made_at, confidence, calibrated]`` does (:mod:`vishap.runtime.device_servo`). Times are
-on the servo's clock: a target's ``made_at`` is the servo time at which its frame was grabbed, so
+on the servo's clock (:meth:`LiveServo.now`): a target's ``made_at`` is the servo time at which its frame was grabbed, so
 the guard's staleness test measures the whole camera → target age. A non-camera source (a recorded
 folder or video) is paced at its own time stamps, so the same loop replays a recording in real time.
 """
@@ -70,8 +70,6 @@ def run_live_loop(scene: str, *, out, source, rig, T_robot_cam, device_path: str
     servo.start()
     try:
         wall0 = time.monotonic()
-        state0, _ = servo.read_state()
-        servo_t0 = state0[0]
         from vishap.apps.assemble import stereo_noise_m
         from vishap.world.predictor import KalmanPredictor
 
@@ -93,8 +91,7 @@ def run_live_loop(scene: str, *, out, source, rig, T_robot_cam, device_path: str
             if grabbed - wall0 > duration_s:
                 break
             state, _ = servo.read_state()
-            servo_now = state[0] if state[0] > 0 else servo_t0 + (grabbed - wall0)
-            t = float(servo_now)
+            t = servo.now()  # the servo's clock at the grab, right also while the servo process is starved
             est = vision.process(StereoFrame(k, t, frame.left, frame.right))
             p_dev = state[1:4] + mount
             pad = np.full(3, np.nan)

@@ -53,8 +53,8 @@ def _servo_main(make_servo, period, priority, cpu, target_name, target_size, sta
         stats = LatenessStats()
         costs = np.zeros(1 << 20)
         n = 0
-        conn.send("ready")
         timer.start()
+        conn.send(("ready", timer.started_at))
         t_sim = 0.0
         clock = time.perf_counter
         while not stop.is_set():
@@ -101,6 +101,7 @@ class LiveServo:
         self._stop = self._ctx.Event()
         self._proc = None
         self._conn = None
+        self._started_at = None
 
     def start(self, timeout: float = 60.0) -> None:
         parent, child = self._ctx.Pipe(duplex=False)
@@ -121,6 +122,15 @@ class LiveServo:
             self._proc.join(5)
             self.close()
             raise RuntimeError(f"servo process failed: {first.error}")
+        self._started_at = float(first[1])
+
+    def now(self) -> float:
+        """The servo's time now (s), read in this process: its timer counts periods from its start on the
+        host's monotonic clock (``time.perf_counter``, shared by all processes) and skips missed ones,
+        so the servo's simulated time is the time since that start, also while the servo is starved."""
+        if self._started_at is None:
+            raise RuntimeError("LiveServo.now: the servo process is not started")
+        return time.perf_counter() - self._started_at
 
     def write_target(self, values) -> None:
         self.targets.write(values)

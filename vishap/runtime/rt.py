@@ -105,6 +105,11 @@ class PeriodicTimer:
         self._start = self._clock()
         self._k = 0
 
+    @property
+    def started_at(self) -> float | None:
+        """The clock reading at :meth:`start` (period k's deadline is ``started_at + k·period``)."""
+        return self._start
+
     def wait(self) -> Tick:
         if self._start is None:
             self.start()
