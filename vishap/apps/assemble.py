@@ -107,7 +107,8 @@ def build(cfg: DemoConfig, out: Path) -> Stages:
                              flexion=flexion, hand_visible=hand_visible, device_points_robot=kin.link_points(q),
                              ee_robot=np.asarray(ee, float), passive_object=po_render))
     st.vision_result = _vision_result
-    st.contact_sample = lambda t, pad, v_pad, F_on_finger: _contact_sample(obj, t, pad, v_pad, F_on_finger)
+    st.contact_sample = lambda t, pad, v_pad, F_on_finger, finger_dir=None: _contact_sample(
+        obj, t, pad, v_pad, F_on_finger, finger_dir)
     st.pad_force = _pad_force(obj, st.face_half_extent)
     st.tactile_state = tactile_step_state
     st.overlay = lambda pair, row, dev, target, t, extra=(): _overlay(st, pair, row, dev, target, t, extra)
@@ -151,13 +152,17 @@ def _vision_result(est) -> dict:
     }
 
 
-def _contact_sample(obj, t, pad, v_pad, F_on_finger):
+def _contact_sample(obj, t, pad, v_pad, F_on_finger, finger_dir_robot=None):
+    """The tactile layer's contact sample in the object frame; with the finger's pointing direction
+    (robot frame) the sleeve's patch follows the finger's pitch (fingertip press or flat pad)."""
     from vishap.tactile.contact import ContactSample
 
     p_obj = obj.local(pad)
     v_obj = obj.R.T @ np.asarray(v_pad, float)
     fn = float(np.asarray(F_on_finger, float) @ np.asarray(obj.normal, float))
-    return ContactSample(t=t, position=p_obj, normal_force_n=max(0.0, fn), velocity=v_obj, in_contact=fn > 0.0)
+    d_obj = None if finger_dir_robot is None else obj.R.T @ np.asarray(finger_dir_robot, float)
+    return ContactSample(t=t, position=p_obj, normal_force_n=max(0.0, fn), velocity=v_obj, in_contact=fn > 0.0,
+                         finger_dir=d_obj)
 
 
 def _pad_force(obj, half_extent):

@@ -30,7 +30,8 @@ def script(hidden_s: float) -> FingerScript:
 
 
 def extra_summary(meta: dict, ch: dict) -> dict:
-    """The click: normal force just before and after the trigger depth, and the two slopes."""
+    """The click: the normal force just before the trigger depth (its last 20 %), the force on the
+    low-stiffness stretch after the click (past the drop, short of the bottom), and the two slopes."""
     from vishap.world.scene import load_scene
 
     sv = ch.get("servo", {})
@@ -44,9 +45,8 @@ def extra_summary(meta: dict, ch: dict) -> dict:
     pre = (d > 0.1 * d_trig) & (d < 0.9 * d_trig)
     post = (d > d_trig + 0.15 * (travel - d_trig)) & (d < travel - 0.1 * (travel - d_trig))
     near_pre = (d > 0.8 * d_trig) & (d < d_trig)
-    near_post = (d > d_trig) & (d < d_trig + 0.3 * (travel - d_trig))
     f_pre = float(np.median(f[near_pre])) if near_pre.any() else None
-    f_post = float(np.median(f[near_post])) if near_post.any() else None
+    f_post = float(np.median(f[post])) if post.any() else None
     return {
         "button_trigger_depth_mm": 1e3 * d_trig,
         "button_max_depth_mm": float(1e3 * d.max()) if d.size else None,

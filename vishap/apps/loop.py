@@ -253,7 +253,7 @@ class Demo:
         c0 = time.perf_counter()
         F_on_finger, pad, v_pad = self.contact
         st = self.st
-        sample = st.contact_sample(t, pad, v_pad, F_on_finger)
+        sample = st.contact_sample(t, pad, v_pad, F_on_finger, self.script.finger_dir)
         out = st.tactile.step(sample)
         row = {"t": t, "normal_force": float(sample.normal_force_n), "in_contact": bool(sample.in_contact),
                "position": sample.position, "velocity": sample.velocity, "state": st.tactile_state(out)}

@@ -162,13 +162,15 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
     tac = ch.get("tactile", {})
     if len(tac.get("t", [])):
         from vishap.apps.assemble import _build_tactile, _contact_sample
+        from vishap.apps.script import script_for
 
         renderer, state_of = _build_tactile(cfg, world.scene)
+        finger_dir = script_for(cfg.scene, hidden_s=0.0).finger_dir
         obj = world.scene.objects[0]
         rows = SignalLog().channel("tactile")
         for i in range(len(tac["t"])):
             k = tick_of[round(float(tac["t"][i]) * cfg.servo_hz)]
-            smp = _contact_sample(obj, float(tac["t"][i]), sv["finger_point"][k], sv["finger_velocity"][k], sv["F_contact"][k])
+            smp = _contact_sample(obj, float(tac["t"][i]), sv["finger_point"][k], sv["finger_velocity"][k], sv["F_contact"][k], finger_dir)
             o = renderer.step(smp)
             rows.append(t=float(tac["t"][i]), state=state_of(o), **tactile_row(o))
         nt = rows.arrays()
