@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vishap._core.motion import min_jerk, min_jerk_rate
+
 __all__ = ["FingerScript", "Z", "script_for"]
 
 Z = -0.150  # surface height of every demo object (m, robot frame)
@@ -46,8 +48,8 @@ class FingerScript:
         k = int(np.searchsorted(T, t, side="right") - 1)
         dur = T[k + 1] - T[k]
         tau = (t - T[k]) / dur
-        s = tau ** 3 * (10 - 15 * tau + 6 * tau ** 2)
-        ds = 30 * tau ** 2 * (1 - tau) ** 2 / dur
+        s = float(min_jerk(tau))
+        ds = float(min_jerk_rate(tau)) / dur
         d = P[k + 1] - P[k]
         return P[k] + s * d, ds * d
 

@@ -32,6 +32,7 @@ from pydantic import Field, model_validator
 
 from vishap._core.config import Schema, load_config
 from vishap._core.errors import ConfigError
+from vishap._core.motion import min_jerk
 from vishap.sim.state import TIP_RADIUS_M
 
 __all__ = ["TRAJECTORIES_DIR", "PHASES", "HIDDEN_PHASES", "TrajectorySpec", "FingerSample", "Trajectory",
@@ -106,11 +107,6 @@ def load_trajectory(name_or_path: str | Path) -> tuple[TrajectorySpec, Path]:
             raise ConfigError(f"unknown trajectory {str(name_or_path)!r}; expected one of {known} or a .yaml file",
                               field="trajectory")
     return load_config(p, TrajectorySpec), p
-
-
-def min_jerk(tau):
-    tau = np.clip(tau, 0.0, 1.0)
-    return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
 
 
 @dataclass

@@ -17,18 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vishap._core.motion import min_jerk
 from vishap.world.scene import Scene, SceneObject
 
 __all__ = ["FingerTrajectory", "make_approaches", "min_jerk"]
 
 REACH_MIN = np.array([0.10, -0.065, -0.20])
 REACH_MAX = np.array([0.30, 0.065, -0.04])
-
-
-def min_jerk(s):
-    """Minimum-jerk phase 10s³ − 15s⁴ + 6s⁵ of ``s`` clipped to [0, 1]."""
-    s = np.clip(s, 0.0, 1.0)
-    return s**3 * (10.0 - 15.0 * s + 6.0 * s * s)
 
 
 @dataclass
