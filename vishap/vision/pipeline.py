@@ -12,7 +12,7 @@ explicitly with :meth:`VisionPipeline.learn_background`.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from vishap.vision.fingertip import FingertipConfig, detect_fingertips, refine_w
 from vishap.vision.rig import StereoRig
 from vishap.vision.segment import SegmentConfig, Segmenter, snap_roi
 from vishap.vision.skin_model import SkinModel
-from vishap.vision.stereo import StereoConfig, triangulate_tip
+from vishap.vision.stereo import StereoConfig, StereoPoint, triangulate_rectified_tip, triangulate_tip
 from vishap.vision.track import TipTracker, TrackerConfig
 
 __all__ = ["PipelineConfig", "TipEstimate", "VisionPipeline"]
@@ -50,6 +50,8 @@ class PipelineConfig:
     full_search_on_miss: bool = True  # a miss in the window triggers a full-frame search of that view
     max_speed_m_s: float = 2.0      # gate of that search: how far the finger may have moved since its last hit
     recheck_jump_px: float = 12.0   # a recheck result this far from the track restarts the track there
+    occluded_cap_ratio: float = 0.85  # a cap below this fraction of the other view's is taken as partly hidden
+    reach_margin_m: float = 0.02    # 3-D gate: distance the finger may be from the last fix beyond max_speed_m_s·dt
     tracking: bool = True           # False: always search the full frame
 
 
@@ -79,6 +81,8 @@ class VisionPipeline:
         self.K = float(rig.K_left[0, 0]) * self.config.tip_circle_m
         self._learn_buf: list = []
         self._z: float | None = None
+        self._p3: np.ndarray | None = None  # last 3-D fix and its time (the 3-D track)
+        self._t3 = 0.0
         self._since_full = 0
         self._size = rig.image_size
 
@@ -103,6 +107,7 @@ class VisionPipeline:
     def reset_tracking(self) -> None:
         self.trackers = {s: TipTracker(self.config.tracker) for s in ("left", "right")}
         self._z = None
+        self._p3 = None
 
     def _check(self, left, right) -> None:
         for name, img in (("left", left), ("right", right)):
@@ -131,7 +136,7 @@ class VisionPipeline:
         for side, img in (("left", frame.left), ("right", frame.right)):
             cands[side], modes[side] = self._detect(side, img, t, timings)
         t1 = time.perf_counter()
-        found, sp = self._choose_pair(cands, modes)
+        found, sp = self._choose_pair(cands, modes, t)
         for side in ("left", "right"):
             trk = self.trackers[side]
             if found[side] is not None and modes[side] == "recheck" and trk.tracking \
@@ -151,48 +156,148 @@ class VisionPipeline:
             sp = spf if spf.ok else sp
         if sp.ok:
             self._z = float(sp.p_cam[2])
+            self._p3, self._t3 = np.asarray(sp.p_cam, dtype=np.float64), t
             return TipEstimate(t, True, sp.p_cam, sp.cov_cam, found["left"], found["right"], conf, timings, modes["left"])
         return TipEstimate(t, False, None, None, found["left"], found["right"], conf, timings, modes["left"], sp.reason)
 
-    def _choose_pair(self, cands: dict, modes: dict):
+    def _choose_pair(self, cands: dict, modes: dict, t: float):
         """Pick the left/right tips: the best-ranked stereo-consistent pair.
 
         A view in tracked mode offers its one candidate (nearest the prediction); a view searched
         over the full frame offers several, ranked by the detector (score, then extremity: index
-        tip before thumb and curled knuckles). A pair must pass the epipolar and disparity checks
-        and its fitted cap radii, scaled by the triangulated depth, must be within
-        ``acquire_radius_band`` of ``finger_radius_m`` (0.5–1.6 when both views are tracked); the pair with the lowest rank sum wins (ties: the larger extremity).
+        tip before thumb and curled knuckles). A pair must pass :meth:`_match`; the pair with the
+        lowest rank sum wins (ties: the larger extremity). Without a pair, a view whose track holds
+        keeps its candidate nearest the track (the other view may be hidden), and the reason is the
+        rejection of the best-ranked pair.
         """
-        cfg = self.config
         L, R = cands["left"], cands["right"]
-        best, best_cost, best_sp = None, np.inf, None
-        reason = "tip missing in one view" if not (L and R) else ""
-        f = float(self.rig.K_left[0, 0])
+        best, best_cost = None, np.inf
+        rejected = []  # (rank sum, reason)
         for il, tl in enumerate(L):
             for ir, tr in enumerate(R):
-                sp = triangulate_tip(self.rig, tl.uv, tr.uv, cfg.stereo)
-                if not sp.ok:
-                    reason = sp.reason
-                    continue
-                z = sp.p_cam[2]
-                ratio = [tip.cap_radius_px * z / f / cfg.finger_radius_m for tip in (tl, tr) if tip.cap_radius_px > 0]
-                lo, hi = (0.5, 1.6) if modes["left"] == modes["right"] == "tracked" else cfg.acquire_radius_band
-                if any(not (lo <= q <= hi) for q in ratio):
-                    reason = "cap radius not a fingertip's"
+                tl, tr, sp, why = self._match(tl, tr, modes, t)
+                if why:
+                    which = f" (candidates {il + 1} of {len(L)} left, {ir + 1} of {len(R)} right)" if len(L) * len(R) > 1 else ""
+                    rejected.append((il + ir, why + which))
                     continue
                 cost = il + ir - (tl.extremity_px + tr.extremity_px) / (1.0 + tl.extremity_px + tr.extremity_px) \
                     + 0.01 * sp.epipolar_px
                 if cost < best_cost:
-                    best, best_cost, best_sp = (tl, tr), cost, sp
+                    best, best_cost = (tl, tr, sp), cost
         if best is not None:
-            return {"left": best[0].uv, "right": best[1].uv}, best_sp
-        found = {s: (cands[s][0].uv if cands[s] and modes[s] == "tracked" else None) for s in ("left", "right")}
-        if found["left"] is not None and found["right"] is not None:  # both tracked but inconsistent
+            return {"left": best[0].uv, "right": best[1].uv}, best[2]
+        if rejected:
+            reason = min(rejected, key=lambda r: r[0])[1]
+        else:
+            reason = " and ".join(f"no fingertip in the {s} view" for s in ("left", "right") if not cands[s])
+        found = {s: self._on_track(s, cands[s], modes[s]) for s in ("left", "right")}
+        if found["left"] is not None and found["right"] is not None:  # both on their tracks but inconsistent
             bad = max(("left", "right"), key=lambda s: self._surprise(s, found[s]))
             found[bad] = None
-        from vishap.vision.stereo import StereoPoint
+        return found, StereoPoint(False, reason=reason)
 
-        return found, StereoPoint(False, reason=reason or "no consistent pair")
+    def _match(self, tl, tr, modes: dict, t: float):
+        """Check one left/right pair: ``(tip_left, tip_right, StereoPoint, reason)``, reason "" if accepted.
+
+        The pair must pass the epipolar and disparity checks, and each fitted cap radius, scaled by
+        its depth, must be within ``acquire_radius_band`` of ``finger_radius_m`` (0.5–1.6 when both
+        views are tracked). A cap much smaller than the other view's (``occluded_cap_ratio``) is
+        (or a pair off the epipolar line by less than a cap radius) may be partly hidden in one
+        view — in an encountered-type system the device stands where the finger is going and its
+        arm often crosses the tip in one view — and is checked by :meth:`_occluded_pair` first.
+        """
+        cfg = self.config
+        cl, cr = tl.cap_radius_px, tr.cap_radius_px
+        sp = triangulate_tip(self.rig, tl.uv, tr.uv, cfg.stereo)
+        odd = cl > 0 and cr > 0 and min(cl, cr) < cfg.occluded_cap_ratio * max(cl, cr)
+        if odd or (not sp.ok and sp.epipolar_px <= cfg.stereo.max_epipolar_px + max(cl, cr)):
+            spo, tip, occ = self._occluded_pair(tl, tr, t)
+            if tip is not None:
+                tl, tr = (tip, tr) if occ == "left" else (tl, tip)
+                return tl, tr, spo, ""
+            if spo is not None:
+                return tl, tr, spo, spo.reason
+        if not sp.ok:
+            return tl, tr, sp, sp.reason
+        lo, hi = (0.5, 1.6) if modes["left"] == modes["right"] == "tracked" else cfg.acquire_radius_band
+        for side, tip in (("left", tl), ("right", tr)):
+            q = tip.cap_radius_px / self._px_per_m(side, sp.p_cam) / cfg.finger_radius_m
+            if tip.cap_radius_px > 0 and not (lo <= q <= hi):
+                return tl, tr, sp, f"cap radius {q:.2f} of a fingertip's in the {side} view (accepted {lo:.2f}–{hi:.2f})"
+        return tl, tr, sp, ""
+
+    def _occluded_pair(self, tl, tr, t: float):
+        """A pair where one view's cap may be cut by an occluder: ``(StereoPoint, corrected tip, view)``;
+        no tip when it is not handled so (the StereoPoint, if any, says why it was rejected).
+
+        The occluded view is the one whose track does not hold, else the one whose tip is further
+        from its track's prediction (Mahalanobis); the other view must be tracked without a miss and its cap of a
+        fingertip's size. The cut cap's centre is off by up to a cap radius (a cut fits a smaller
+        or a flatter, larger circle); its row is replaced by the other view's rectified row (the
+        tip lies on that epipolar line) and only its column (the disparity) is used. The 3-D
+        point must be within reach of the 3-D track, and the pixel noise of the triangulation is
+        raised by the row offset (covariance). The corrected tip is the 3-D point projected into
+        the occluded view.
+        """
+        cfg = self.config
+        tips = {"left": tl, "right": tr}
+        rect = {s: self.rig.rectify_points(np.asarray(tp.uv, dtype=np.float64).reshape(1, 2), s)[0]
+                for s, tp in tips.items()}
+        reach_px = max(tl.cap_radius_px, tr.cap_radius_px)  # the tip is within a cap radius of any cap point
+        epi = abs(rect["left"][1] - rect["right"][1])
+        stereo = replace(cfg.stereo, sigma_px=float(np.hypot(cfg.stereo.sigma_px, epi)),
+                         max_epipolar_px=cfg.stereo.max_epipolar_px + reach_px)
+        sp0 = triangulate_rectified_tip(self.rig, rect["left"], rect["right"], stereo)
+        if not sp0.ok:
+            return None, None, None
+        q = {s: tp.cap_radius_px / self._px_per_m(s, sp0.p_cam) / cfg.finger_radius_m for s, tp in tips.items()}
+        held = [s for s in ("left", "right") if self.trackers[s].tracking and self.trackers[s].kf.misses == 0]
+        if len(held) == 1:
+            other = held[0]
+        elif held:
+            other = min(held, key=lambda s: self._surprise(s, tips[s].uv))
+        else:
+            return None, None, None
+        occ = "right" if other == "left" else "left"
+        lo, hi = cfg.acquire_radius_band
+        if not (lo <= q[other] <= hi):
+            return None, None, None
+        small = tips[occ]
+        tip = replace(small)
+        rect[occ] = np.array([rect[occ][0], rect[other][1]])  # on the other view's epipolar line
+        sp = triangulate_rectified_tip(self.rig, rect["left"], rect["right"], stereo)
+        if not sp.ok:
+            return sp, None, occ
+        if not self._within_reach(sp.p_cam, t):
+            return StereoPoint(False, reason=f"cap partly hidden in the {occ} view and its 3-D point out of "
+                                             f"reach of the 3-D track"), None, occ
+        uv_l, uv_r = self.rig.project(sp.p_cam[None])
+        tip.uv = (uv_l if occ == "left" else uv_r)[0]
+        return sp, tip, occ
+
+    def _px_per_m(self, side: str, p_cam) -> float:
+        """Pixels per metre at the point ``p_cam`` (left camera frame) in one view: f / z."""
+        if side == "left":
+            return float(self.rig.K_left[0, 0]) / float(p_cam[2])
+        return float(self.rig.K_right[0, 0]) / float((self.rig.R @ p_cam + self.rig.T)[2])
+
+    def _within_reach(self, p_cam, t: float) -> bool:
+        """Could the finger have moved from the last 3-D fix to ``p_cam`` by time ``t``
+        (``max_speed_m_s`` plus ``reach_margin_m``)? False when there is no 3-D fix."""
+        if self._p3 is None:
+            return False
+        reach = self.config.max_speed_m_s * max(0.0, t - self._t3) + self.config.reach_margin_m
+        return bool(np.linalg.norm(np.asarray(p_cam) - self._p3) <= reach)
+
+    def _on_track(self, side: str, tips: list, mode: str):
+        """Without a stereo pair: the candidate of a view whose track holds, if it is on the track."""
+        trk = self.trackers[side]
+        if not tips or not trk.tracking or mode == "full":
+            return None
+        if mode == "tracked":
+            return tips[0].uv
+        uv = min((tp.uv for tp in tips), key=lambda u: float(np.hypot(*(u - trk.kf.position))))
+        return uv if np.hypot(*(uv - trk.kf.position)) <= self.config.recheck_jump_px else None
 
     def _surprise(self, side: str, uv) -> float:
         trk = self.trackers[side]
