@@ -71,3 +71,41 @@ def test_no_pair_reason_names_the_best_ranked_rejection(setup):
     shifted = np.roll(f.right, 12, axis=0)  # the right tip 12 rows lower: off the epipolar line
     est = pipe.process(StereoFrame(3, 0.2, f.left, shifted))
     assert not est.found and est.reason.startswith("epipolar error")
+
+
+def _learned(rig, skin, scene, n=2):
+    pipe = VisionPipeline(rig, skin_model=skin, config=PipelineConfig(learn_frames=n))
+    for i in range(n):
+        f = scene.frame(i / 30, (0, 0, 0.45), hand=False)
+        pipe.process(StereoFrame(i, i / 30, f.left, f.right))
+    return pipe
+
+
+def test_a_new_3d_track_is_reported_only_once_a_second_frame_confirms_it(setup):
+    rig, skin = setup
+    scene = ToyScene(rig, seed=5)
+    pipe = _learned(rig, skin, scene)
+    a, b, c = np.array([-0.03, 0.0, 0.45]), np.array([0.05, 0.03, 0.52]), np.array([0.0, -0.02, 0.42])
+    f = scene.frame(0.1, a)
+    est = pipe.process(StereoFrame(2, 0.1, f.left, f.right))  # a finger seen in one frame only
+    assert not est.found and "not yet confirmed" in est.reason
+    empty = scene.frame(0.133, a, hand=False)
+    assert not pipe.process(StereoFrame(3, 0.133, empty.left, empty.right)).found
+    for k, t in enumerate((0.7, 0.733, 0.767)):  # later, a steady finger: reported from its second frame
+        f = scene.frame(t, c + [0.001 * k, 0, 0])
+        est = pipe.process(StereoFrame(4 + k, t, f.left, f.right))
+        assert est.found == (k > 0), (k, est.reason)
+    # a jump beyond what the finger can move in one frame (2 m/s): held back one frame
+    f = scene.frame(0.8, b)
+    est = pipe.process(StereoFrame(7, 0.8, f.left, f.right))
+    assert not est.found
+    f = scene.frame(0.833, b)
+    est = pipe.process(StereoFrame(8, 0.833, f.left, f.right))
+    assert est.found and np.linalg.norm(est.p_cam - b) < 0.005
+    # without the confirmation the first frame is reported
+    pipe = VisionPipeline(rig, skin_model=skin, config=PipelineConfig(learn_frames=2, confirm_new_tracks=False))
+    for i in range(2):
+        e = scene.frame(i / 30, a, hand=False)
+        pipe.process(StereoFrame(i, i / 30, e.left, e.right))
+    f = scene.frame(0.1, a)
+    assert pipe.process(StereoFrame(2, 0.1, f.left, f.right)).found

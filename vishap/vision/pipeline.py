@@ -52,6 +52,9 @@ class PipelineConfig:
     recheck_jump_px: float = 12.0   # a recheck result this far from the track restarts the track there
     occluded_cap_ratio: float = 0.85  # a cap below this fraction of the other view's is taken as partly hidden
     reach_margin_m: float = 0.02    # 3-D gate: distance the finger may be from the last fix beyond max_speed_m_s·dt
+    track_max_age_s: float = 0.5    # a 3-D fix older than this no longer gates (the finger may be anywhere)
+    confirm_within_s: float = 0.1   # a fix that starts a new 3-D track must be confirmed this soon
+    confirm_new_tracks: bool = True  # hold back a fix that starts a new 3-D track until the next frame agrees
     tracking: bool = True           # False: always search the full frame
 
 
@@ -83,6 +86,7 @@ class VisionPipeline:
         self._z: float | None = None
         self._p3: np.ndarray | None = None  # last 3-D fix and its time (the 3-D track)
         self._t3 = 0.0
+        self._pending = None                # (p, t) of a fix that would start a new 3-D track
         self._since_full = 0
         self._size = rig.image_size
 
@@ -107,7 +111,7 @@ class VisionPipeline:
     def reset_tracking(self) -> None:
         self.trackers = {s: TipTracker(self.config.tracker) for s in ("left", "right")}
         self._z = None
-        self._p3 = None
+        self._p3 = self._pending = None
 
     def _check(self, left, right) -> None:
         for name, img in (("left", left), ("right", right)):
@@ -154,6 +158,8 @@ class VisionPipeline:
             found = {s: self.trackers[s].kf.position.copy() for s in ("left", "right")}
             spf = triangulate_tip(self.rig, found["left"], found["right"], self.config.stereo)
             sp = spf if spf.ok else sp
+        if sp.ok and not self._confirmed(sp.p_cam, t):
+            sp = StereoPoint(False, reason="new fingertip position, not yet confirmed by a second frame")
         if sp.ok:
             self._z = float(sp.p_cam[2])
             self._p3, self._t3 = np.asarray(sp.p_cam, dtype=np.float64), t
@@ -281,13 +287,26 @@ class VisionPipeline:
             return float(self.rig.K_left[0, 0]) / float(p_cam[2])
         return float(self.rig.K_right[0, 0]) / float((self.rig.R @ p_cam + self.rig.T)[2])
 
-    def _within_reach(self, p_cam, t: float) -> bool:
-        """Could the finger have moved from the last 3-D fix to ``p_cam`` by time ``t``
-        (``max_speed_m_s`` plus ``reach_margin_m``)? False when there is no 3-D fix."""
-        if self._p3 is None:
+    def _within_reach(self, p_cam, t: float, fix=None, max_age_s: float | None = None) -> bool:
+        """Could the finger have moved from the last 3-D fix (or ``fix = (p, t)``) to ``p_cam`` by
+        time ``t`` (``max_speed_m_s`` plus ``reach_margin_m``)? False when there is no fix or it is
+        older than ``max_age_s`` (default ``track_max_age_s``)."""
+        p0, t0 = (self._p3, self._t3) if fix is None else fix
+        age = self.config.track_max_age_s if max_age_s is None else max_age_s
+        if p0 is None or t - t0 > age:
             return False
-        reach = self.config.max_speed_m_s * max(0.0, t - self._t3) + self.config.reach_margin_m
-        return bool(np.linalg.norm(np.asarray(p_cam) - self._p3) <= reach)
+        reach = self.config.max_speed_m_s * max(0.0, t - t0) + self.config.reach_margin_m
+        return bool(np.linalg.norm(np.asarray(p_cam) - p0) <= reach)
+
+    def _confirmed(self, p_cam, t: float) -> bool:
+        """Report ``p_cam``? Yes when it continues the 3-D track; a point that starts a track (first
+        fix, a jump out of reach, a fix after ``track_max_age_s``) is held back until a frame within
+        ``confirm_within_s`` confirms it within reach — a one-frame false match would send the device to a wrong target."""
+        if not self.config.confirm_new_tracks or self._within_reach(p_cam, t):
+            return True
+        ok = self._pending is not None and self._within_reach(p_cam, t, self._pending, self.config.confirm_within_s)
+        self._pending = None if ok else (np.asarray(p_cam, dtype=np.float64), t)
+        return ok
 
     def _on_track(self, side: str, tips: list, mode: str):
         """Without a stereo pair: the candidate of a view whose track holds, if it is on the track."""
