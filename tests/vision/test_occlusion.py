@@ -74,7 +74,7 @@ def test_no_pair_reason_names_the_best_ranked_rejection(setup):
 
 
 def _learned(rig, skin, scene, n=2):
-    pipe = VisionPipeline(rig, skin_model=skin, config=PipelineConfig(learn_frames=n))
+    pipe = VisionPipeline(rig, skin_model=skin, config=PipelineConfig(learn_frames=n, confirm_new_tracks=True))
     for i in range(n):
         f = scene.frame(i / 30, (0, 0, 0.45), hand=False)
         pipe.process(StereoFrame(i, i / 30, f.left, f.right))

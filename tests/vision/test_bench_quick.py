@@ -1,0 +1,17 @@
+"""`vishap bench vision --quick` (the setting `vishap bench all` runs) end to end on a tiny sequence."""
+import json
+
+from vishap.cli import main
+from vishap.vision.toy import write_sequence
+
+
+def test_bench_vision_quick_runs_and_writes_its_record(tmp_path):
+    write_sequence(tmp_path / "toy", seed=3, frames=16, learn=4)
+    out = tmp_path / "out"
+    assert main(["bench", "vision", "--quick", "--data", str(tmp_path / "toy"), "--frames", "16", "--out", str(out)]) == 0
+    rec = json.loads((out / "vision.json").read_text())
+    seq = rec["sequences"]["toy"]
+    assert set(seq["pipeline"]) == {"tracked window", "full frame", "tracked, no periodic recheck"}
+    assert seq["pipeline"]["tracked window"]["detection_rate"] > 0.5
+    assert "GSOC + skin + median" not in seq["segmentation"]  # the quick setting leaves the slow peer out
+    assert (out / "vision_speed_accuracy.png").is_file() and (out / "vision_detector_constants.png").is_file()
