@@ -55,8 +55,7 @@ class PipelineConfig:
     track_max_age_s: float = 0.5    # a 3-D fix older than this no longer gates (the finger may be anywhere)
     confirm_within_s: float = 0.1   # a fix that starts a new 3-D track must be confirmed this soon
     confirm_new_tracks: bool = False  # hold back a fix that starts a new 3-D track until the next frame agrees
-    #   (measured: 1 → 0 false detections on the wall demo frames; off by default: the demo's fault-injection
-    #   test then sees no vision result in its stall window — not yet understood)
+    #   (measured: 1 → 0 false detections on the wall demo frames; off by default: see docs/vision.md)
     tracking: bool = True           # False: always search the full frame
 
 
