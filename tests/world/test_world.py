@@ -147,3 +147,58 @@ def test_path_extrapolation_follows_a_bowed_reach_that_the_ray_misses():
     assert abs(ray[0] - c[0]) > 0.001
     ex.observe(0.4, centre + [0.0, 0.0, 0.06])  # going up: no prediction
     assert ex.contact(centre, R) is None
+
+
+def _bowed_reach(t, t0=0.1, T=0.30):
+    """A decelerating, bowed minimum-jerk reach ending 1.5 mm under the wall plane z = -0.15."""
+    from vishap.world.trajectories import min_jerk
+
+    S, E = np.array([0.240, 0.045, -0.090]), np.array([0.215, 0.010, -0.1515])
+    m = min_jerk((t - t0) / T)
+    return S + (E - S) * m + np.array([0.6, -0.8, 0.0]) * 0.006 * np.sin(np.pi * m)
+
+
+def test_reach_fit_finds_the_touch_point_of_a_decelerating_reach_that_the_ray_overshoots():
+    from vishap.world.predictor import KalmanPredictor, ReachFit
+
+    tt = np.linspace(0.1, 0.4, 30001)
+    zs = np.array([_bowed_reach(t)[2] for t in tt])
+    t_touch = tt[np.argmax(zs <= -0.150)]
+    touch = _bowed_reach(t_touch)
+    rng = np.random.default_rng(3)
+    rf, kf = ReachFit(), KalmanPredictor()
+    t = 0.0
+    while t < 0.1 + 0.67 * 0.30:  # two thirds of the reach seen
+        p = _bowed_reach(t) + rng.normal(0.0, 0.0003, 3)
+        rf.observe(t, p)
+        kf.observe(t, p)
+        t += 1 / 30
+    c, var = rf.contact(np.array([0.2, 0.0, -0.15]), np.eye(3))
+    err = np.linalg.norm(c[:2] - touch[:2])
+    pk, vk = kf.state_at(t)
+    ray, _ = contact_point(pk, vk, [0, 0, 1], -0.15, horizon_s=0.4)
+    assert err < 0.001 and np.linalg.norm(ray[:2] - touch[:2]) > 2 * err  # the ray overshoots
+    assert c[2] == pytest.approx(-0.15) and 0 < var < 0.003**2
+    assert rf.t_touch == pytest.approx(t_touch, abs=0.02)
+    rf.reset()
+    for k in range(4):  # a finger at rest: its own projection
+        rf.observe(k / 30, [0.21, 0.02, -0.09])
+    c, _ = rf.contact(np.array([0.2, 0.0, -0.15]), np.eye(3))
+    assert np.allclose(c, [0.21, 0.02, -0.15], atol=0.002)
+
+
+def test_a_predicted_touch_is_not_taken_for_a_seen_one():
+    """While only the prediction is under the surface, X_d stays at the meeting point; once the device
+    is pressed (or a sample is at the surface), it follows the finger's projection."""
+    w = World(load_scene("wall"), latency_s=0.033)
+    for k in range(8):  # 0.3 m/s straight down, last sample 3 mm above the plane
+        it = w.update(k / 30, [0.2, 0.0, -0.150 + 0.003 + 0.010 * (7 - k)], [0.2, 0.0, -0.15])
+    assert it.in_contact  # predicted under the surface 33 ms later
+    w2 = World(load_scene("wall"), latency_s=0.033)
+    for k in range(8):  # the same, drifting sideways: the straight line overshoots in x
+        p = [0.2 + 0.004 * k, 0.0, -0.150 + 0.003 + 0.010 * (7 - k)]
+        it2 = w2.update(k / 30, p, [0.22, 0.0, -0.15])
+    assert it2.in_contact and not np.allclose(it2.X_d, w2.scene.objects[0].project(w2.predictor.state_at(7 / 30 + 0.033)[0]))
+    it3 = w2.update(8 / 30, None, [0.22, 0.0, -0.152])  # the device is pushed 2 mm under: a touch
+    p_now = w2.predictor.state_at(8 / 30 + 0.033)[0]
+    assert np.allclose(it3.X_d, w2.scene.objects[0].project(p_now))

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "MeetingPoint", "PathExtrapolator", "make_predictor", "contact_point", "PREDICTORS"]
+__all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "MeetingPoint", "PathExtrapolator", "ReachFit", "make_predictor", "contact_point", "PREDICTORS"]
 
 
 class LastSample:
@@ -255,3 +255,101 @@ def contact_point(p_robot, v_robot, normal, offset_m: float, *, horizon_s: float
             tau = None
     q = p + v * (tau if tau is not None else (horizon_s if closing > min_speed_m_s else 0.0))
     return q - n * (float(n @ q) - offset_m), tau
+
+
+def _min_jerk(s):
+    s = np.clip(s, 0.0, 1.0)
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+_TAU_TABLE = np.linspace(0.0, 1.0, 1001)
+_M_TABLE = _min_jerk(_TAU_TABLE)
+
+
+class ReachFit:
+    """Where a reaching finger will touch a surface: a minimum-jerk reach (Flash & Hogan) fitted to
+    the recent raw samples, in the surface's frame.
+
+    Model, with the phase ``m = 10τ³ − 15τ⁴ + 6τ⁵`` of ``τ = (t − t0)/T`` clipped to [0, 1]:
+    height ``h = h_S·(1 − m) + h_E·m``; tangential ``u = a + b·m + c·4m(1 − m)`` (a reach bowed
+    sideways by ``c`` at mid-way; the tangential extent ``b`` has the prior ``N(0, reach_std_m²)``). The reach is assumed to end on the surface: ``h_E`` has the prior
+    ``N(−end_depth_m, end_std_m²)``, which is what lets the onset (``h_S − h ∝ τ³``) tell the duration
+    early; the bow ``c`` has the prior ``N(0, bow_std_m²)``. For each ``(t0, T)`` of a grid the linear
+    parameters are a weighted least-squares fit; the grid is then weighted by ``exp(−χ²/2)`` and the
+    touch point (where ``h`` crosses 0, or the end of the reach if it stays above) is averaged over
+    it: the mean and its variance (the spread over the grid plus the fit's own variance) come back.
+
+    A decelerating reach is modelled, so the touch point does not overshoot as a straight-line
+    extrapolation does. Returns None with too few samples.
+    """
+
+    def __init__(self, *, window_s: float = 1.0, meas_std_m: float = 0.0008, end_depth_m: float = 0.0015,
+                 end_std_m: float = 0.003, bow_std_m: float = 0.01, reach_std_m: float = 0.05, durations_s=None,
+                 t0_step_s: float = 0.01):
+        self.window_s = float(window_s)
+        self.w = 1.0 / float(meas_std_m) ** 2
+        self.end_depth, self.w_end = float(end_depth_m), 1.0 / float(end_std_m) ** 2
+        self.w_bow = 1.0 / float(bow_std_m) ** 2
+        self.w_reach = 1.0 / float(reach_std_m) ** 2
+        self.T = np.geomspace(0.1, 1.6, 40) if durations_s is None else np.asarray(durations_s, dtype=float)
+        self.t0_step = float(t0_step_s)
+        self.reset()
+
+    def reset(self) -> None:
+        self.samples: list[tuple[float, np.ndarray]] = []
+        self.t_touch: float | None = None
+
+    def observe(self, t: float, p_robot) -> None:
+        if p_robot is None:
+            return
+        self.samples.append((float(t), np.asarray(p_robot, dtype=float).copy()))
+        while self.samples and self.samples[0][0] < t - self.window_s:
+            self.samples.pop(0)
+
+    def contact(self, centre, R_robot_obj) -> tuple[np.ndarray, float] | None:
+        """(touch point on the surface plane (robot frame), variance m²) or None; sets ``t_touch``."""
+        self.t_touch = None
+        if len(self.samples) < 4:
+            return None
+        ts = np.array([t for t, _ in self.samples])
+        q = (np.array([p for _, p in self.samples]) - centre) @ R_robot_obj
+        t_last = ts[-1]
+        t0 = np.arange(t_last - self.window_s - 0.5, t_last + 1e-9, self.t0_step)
+        T0, TT = np.meshgrid(t0, self.T, indexing="ij")
+        T0, TT = T0.ravel(), TT.ravel()
+        m = _min_jerk((ts[None, :] - T0[:, None]) / TT[:, None])  # (K, N)
+        w = self.w
+        # height: h = hS (1 − m) + hE m, prior hE ~ N(−end_depth, end_std²)
+        h = q[:, 2]
+        a11 = w * ((1 - m) ** 2).sum(1) + 1e-6 * w  # keeps a reach ended before the window solvable
+        a12 = w * ((1 - m) * m).sum(1)
+        a22 = w * (m * m).sum(1) + self.w_end
+        b1 = w * ((1 - m) @ h)
+        b2 = w * (m @ h) - self.w_end * self.end_depth
+        det = a11 * a22 - a12 * a12
+        hS = (a22 * b1 - a12 * b2) / det
+        hE = (a11 * b2 - a12 * b1) / det
+        chi = w * (((hS[:, None] * (1 - m) + hE[:, None] * m) - h) ** 2).sum(1) + self.w_end * (hE + self.end_depth) ** 2
+        # tangential: u = a + b m + c β, β = 4 m (1 − m), prior c ~ N(0, bow_std²)
+        beta = 4.0 * m * (1.0 - m)
+        X = np.stack([np.ones_like(m), m, beta], axis=2)  # (K, N, 3)
+        A = w * np.einsum("kni,knj->kij", X, X)
+        A[:, 2, 2] += self.w_bow
+        A[:, 1, 1] += self.w_reach  # a candidate whose phase hardly moves cannot claim a long reach
+        B = w * np.einsum("kni,nj->kij", X, q[:, :2])  # (K, 3, 2)
+        coef = np.linalg.solve(A, B)
+        res = np.einsum("kni,kij->knj", X, coef) - q[None, :, :2]
+        chi += w * (res**2).sum((1, 2)) + self.w_bow * (coef[:, 2, :] ** 2).sum(1) + self.w_reach * (coef[:, 1, :] ** 2).sum(1)
+        # touch phase: h crosses 0, else the end of the reach
+        mt = np.where((hE < 0.0) & (hS > 0.0), hS / np.maximum(hS - hE, 1e-12), 1.0)
+        uv = coef[:, 0, :] + coef[:, 1, :] * mt[:, None] + coef[:, 2, :] * (4.0 * mt * (1.0 - mt))[:, None]
+        pw = np.exp(-0.5 * (chi - chi.min()))
+        pw /= pw.sum()
+        mean = pw @ uv
+        var = float(pw @ ((uv - mean) ** 2).sum(1)) / 2.0
+        Ainv = np.linalg.inv(A[int(np.argmax(pw))])
+        xt = np.array([1.0, mt[int(np.argmax(pw))], 4.0 * mt[int(np.argmax(pw))] * (1.0 - mt[int(np.argmax(pw))])])
+        var += float(xt @ Ainv @ xt)
+        tau = np.interp(mt, _M_TABLE, _TAU_TABLE)
+        self.t_touch = float(pw @ (T0 + tau * TT))
+        return centre + R_robot_obj[:, 0] * mean[0] + R_robot_obj[:, 1] * mean[1], var

@@ -26,12 +26,13 @@ import numpy as np
 
 from vishap._core.check import as_array
 from vishap.world.force_laws import DEFAULT_MAX_FORCE_N, make_law
-from vishap.world.predictor import MeetingPoint, PathExtrapolator, contact_point, make_predictor
+from vishap.world.predictor import MeetingPoint, PathExtrapolator, ReachFit, contact_point, make_predictor
 from vishap.world.scene import Scene, SceneObject
 
 __all__ = ["Interaction", "World", "HANDOVERS"]
 
 HANDOVERS = ("hold", "blend", "track")
+CONTACT_MODELS = ("ray", "path", "both", "reach")
 _UP = np.array([0.0, 0.0, 1.0])
 _ZERO3 = np.zeros(3)
 _EYE3 = np.eye(3)
@@ -91,12 +92,13 @@ class World:
         contact_model: str = "both",
         engage_m: float = 0.0003,
     ):
-        if contact_model not in ("ray", "path", "both"):
-            raise ValueError(f"contact_model must be 'ray', 'path' or 'both', got {contact_model!r}")
+        if contact_model not in CONTACT_MODELS:
+            raise ValueError(f"contact_model must be one of {CONTACT_MODELS}, got {contact_model!r}")
         self.contact_model = contact_model
         self.engage_m = float(engage_m)
         self.heading_confirm = 1  # updates in a row the finger must head for an object to switch to it
         self.path = PathExtrapolator()
+        self.reach = ReachFit()
         if handover not in HANDOVERS:
             raise ValueError(f"handover must be one of {HANDOVERS}, got {handover!r}")
         self.scene = scene
@@ -118,8 +120,10 @@ class World:
         self.law = None
         self.held: np.ndarray | None = None
         self.X_d: np.ndarray | None = None
+        self.p_meas: np.ndarray | None = None  # the latest measured fingertip
         self.meeting.reset()
         self.path.reset()
+        self.reach.reset()
         self._heading: str | None = None
         if hasattr(self.predictor, "reset"):
             self.predictor.reset()
@@ -131,6 +135,10 @@ class World:
             p_robot_finger = as_array(p_robot_finger, (3,), "p_robot_finger")
         self.predictor.observe(t, p_robot_finger)
         self.path.observe(t, p_robot_finger)
+        if self.contact_model == "reach":
+            self.reach.observe(t, p_robot_finger)
+        if p_robot_finger is not None:
+            self.p_meas = p_robot_finger
         if not self.predictor.ready:
             X = self.X_d if self.X_d is not None else self.scene.objects[0].centre.copy()
             return Interaction(t, None, None, X.copy(), float("-inf"), False, False, _UP.copy())
@@ -143,9 +151,14 @@ class World:
         imminent = distances[subj.name] < self.imminent_m
         c, tau = contact_point(p, v, subj.normal, subj.offset, horizon_s=self.horizon_s)
         c = subj.project(c)
-        fit = self.path.contact(subj.centre, subj.R) if self.contact_model != "ray" and tau is not None else None
+        fit = self.path.contact(subj.centre, subj.R) if self.contact_model in ("path", "both") and tau is not None else None
         use_ray = self.contact_model != "path" or fit is None
-        if tau is None:
+        reach = None
+        if self.contact_model == "reach" and self.p_meas is not None and subj.height(self.p_meas) > 0.0:
+            reach = self.reach.contact(subj.centre, subj.R)
+        if reach is not None:
+            c = subj.project(reach[0])
+        elif tau is None:
             self.meeting.reset()
         else:
             if use_ray and hasattr(self.predictor, "cov_at"):  # fuse successive predictions by their uncertainty
@@ -154,7 +167,7 @@ class World:
             if fit is not None:  # the path's own extrapolation, fused by its variance
                 c = self.meeting.update(fit[0], 0.0, fit[1], 0.0)
             c = subj.project(c)
-        X = self._target(subj, p, c, h, in_contact)
+        X = self._target(subj, p, c, h, in_contact and self._touch_confirmed(subj, p_robot_device))
         via = False
         start = p_robot_device if p_robot_device is not None else self.X_d
         if start is not None:
@@ -199,6 +212,14 @@ class World:
                 self.law.reset()
             self.law = self.laws[obj.name]
         return obj
+
+    def _touch_confirmed(self, subj: SceneObject, p_robot_device) -> bool:
+        """The touch seen, not only predicted: the latest *measured* fingertip is at the surface or the
+        device is pushed under it by more than ``engage_m``. Until then the meeting point is held —
+        the straight-line prediction of the present overshoots a decelerating finger."""
+        if self.p_meas is not None and subj.height(self.p_meas) <= self.contact_margin_m:
+            return True
+        return p_robot_device is not None and subj.height(np.asarray(p_robot_device, dtype=float)) < -self.engage_m
 
     def _target(self, subj: SceneObject, p, c, h: float, in_contact: bool) -> np.ndarray:
         if subj.mode.target == "centre":
