@@ -64,3 +64,18 @@ def test_panel_switches_subject_and_goes_over_the_shelf():
         r = run_approach(scene, tr, World(scene, latency_s=0.033), vision=CLEAN, stop_after_contact_s=0.05)
         assert r.subject_at_contact == tr.object_name and len(r.subjects) >= 2, r.subjects
         assert not r.through_object and r.touched
+
+
+def test_device_travels_on_stiffer_gains_and_renders_contact_on_the_contact_gains():
+    from vishap._core.errors import ConfigError
+    from vishap.world.closed_loop import CONTACT_GAINS, TRAVEL_GAINS, make_device
+
+    scene = load_scene("wall")
+    dev = make_device(scene)
+    assert dev[0].limits.max_stiffness_n_m == 8000.0  # the robot's wall-stiffness limit
+    assert (dev[1].gains.kp, dev[1].gains.kv) == TRAVEL_GAINS
+    with pytest.raises(ConfigError):
+        make_device(scene, gains=(6400.0, 8.0))  # outside the measured stable region
+    tr = _traj(scene, "wall", [0.01, 0.0, 0.04], 0.2)
+    r = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s), vision=CLEAN, device=dev, stop_after_contact_s=0.15)
+    assert r.in_place and (dev[1].gains.kp, dev[1].gains.kv) == CONTACT_GAINS  # pressed in: contact gains

@@ -24,15 +24,22 @@ from vishap.bench._common import machine_info, median_us, new_figure, save_figur
 
 HELP = "world: closed-loop meeting on the MuJoCo device (lead, contact error, Fig. 6), policies, servo cost"
 
-#: (predictor, handover, contact model); the last is the default of :class:`~vishap.world.World`
+#: (predictor, handover, contact model, travel gains (Kp, Kv)); the last is the default of
+#: :class:`~vishap.world.World` with :data:`~vishap.world.closed_loop.TRAVEL_GAINS`, the one before it
+#: the previous default (ray+path fusion, the contact gains while travelling too)
+OLD_GAINS = (800.0, 32.0)
+NEW_GAINS = (1600.0, 32.0)
 POLICIES = [
-    ("none", "track", "ray"),
-    ("cv", "hold", "ray"),
-    ("kalman", "blend", "ray"),
-    ("kalman", "hold", "ray"),
-    ("kalman", "hold", "path"),
-    ("kalman", "blend", "both"),
-    ("kalman", "hold", "both"),
+    ("none", "track", "ray", OLD_GAINS),
+    ("cv", "hold", "ray", OLD_GAINS),
+    ("kalman", "hold", "ray", OLD_GAINS),
+    ("kalman", "hold", "path", OLD_GAINS),
+    ("kalman", "hold", "reach", OLD_GAINS),
+    ("kalman", "hold", "ray", NEW_GAINS),
+    ("kalman", "hold", "both", NEW_GAINS),
+    ("kalman", "hold", "both", OLD_GAINS),
+    ("kalman", "hold", "reach", NEW_GAINS),
+    ("kalman", "hold", "all", NEW_GAINS),
 ]
 
 
@@ -159,12 +166,39 @@ def _servo_cost(scenes, rounds=5, n=3000):
     return rec
 
 
+def _perfect_world_class():
+    from vishap.world.world import World
+
+    class PerfectWorld(World):
+        """The world with perfect prediction: X_d is the true touch point of the trajectory once it is
+        known (``ahead`` seconds before the touch; None: from the start) — a bound, not a policy."""
+
+        def truth(self, traj, ahead):
+            self._obj = self.scene.object(traj.object_name)
+            self._touch = self._obj.project(traj.position(traj.t_surface))
+            self._t_known = -1e9 if ahead is None else traj.t_surface - ahead
+            self._now = -1e9
+
+        def update(self, t, p_robot_finger, p_robot_device=None):
+            self._now = t + self.latency_s
+            return super().update(t, p_robot_finger, p_robot_device)
+
+        def _target(self, subj, p, c, h, in_contact):
+            X = super()._target(subj, p, c, h, in_contact)
+            if subj is self._obj and not in_contact and subj.mode.target != "centre" and self._now >= self._t_known:
+                return self._touch.copy()
+            return X
+
+    return PerfectWorld
+
+
 def run(args) -> dict:
-    from vishap.world.closed_loop import FingerPad, VisionModel, run_approach
+    from vishap.world.closed_loop import CONTACT_GAINS, TRAVEL_GAINS, FingerPad, VisionModel, run_approach
     from vishap.world.scene import load_scene
     from vishap.world.trajectories import make_approaches
     from vishap.world.world import World
 
+    PerfectWorld = _perfect_world_class()
     out = Path(args.out)
     vision = VisionModel(args.rate_hz, args.latency_ms / 1e3, args.noise_mm / 1e3, args.dropout)
     in_place_m = args.in_place_mm / 1e3
@@ -241,15 +275,16 @@ def run(args) -> dict:
     pol_scene = scenes.get("wall") or load_scene("wall")
     trajs = make_approaches(pol_scene, args.policy_approaches, seed=args.seed + 7, bow_fraction=args.bow, slide=False)
     policies = {}
-    for pred, ho, cm in POLICIES:
+    for pred, ho, cm, g in POLICIES:
         rs = [
             run_approach(pol_scene, tr, World(pol_scene, predictor=pred, handover=ho, contact_model=cm,
                                               latency_s=vision.latency_s),
-                         vision=vision, seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02)
+                         vision=vision, seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02,
+                         gains=(g, CONTACT_GAINS))
             for i, tr in enumerate(trajs)
         ]
-        policies[f"{pred}+{ho}+{cm}"] = {**_summary(rs, in_place_m), "errors_mm": [r.contact_error_m * 1e3 for r in rs],
-                                    "speeds": [r.speed_m_s for r in rs]}
+        policies[f"{pred}+{ho}+{cm} Kp{g[0]:.0f}"] = {**_summary(rs, in_place_m), "errors_mm": [r.contact_error_m * 1e3 for r in rs],
+                                                     "speeds": [r.speed_m_s for r in rs]}
     charts.append(str(_plot_policies(policies, out / "policies.png")))
 
     # what limits the meeting: the same approaches with better fingertip data (default policy)
@@ -265,19 +300,16 @@ def run(args) -> dict:
             for i, tr in enumerate(trajs)
         ]
         sens[label] = _brief(rs, trajs, in_place_m)
-    # a stiffer position servo while the device travels (robot gains Kp/Kv; free motion only — the
-    # press is not simulated here, so its stability in contact is not assessed)
-    from vishap.robot.controller import Gains
-    from vishap.world.closed_loop import make_device
-
-    dev = make_device(pol_scene)
-    dev[1].set_gains(Gains(kp=1200.0, kv=30.0, ramp_s=0.05))
-    rs = [
-        run_approach(pol_scene, tr, World(pol_scene, latency_s=vision.latency_s), vision=vision, device=dev,
-                     seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02)
-        for i, tr in enumerate(trajs)
-    ]
-    sens["device_gains_kp1200_kv30_free_motion"] = _brief(rs, trajs, in_place_m)
+    # perfect prediction: the true touch point given to the world from the start, or only 100 ms
+    # before the touch — what the servo alone allows
+    for label, ahead in (("perfect_prediction", None), ("perfect_prediction_100ms_before_touch", 0.1)):
+        rs = []
+        for i, tr in enumerate(trajs):
+            w = PerfectWorld(pol_scene, latency_s=vision.latency_s)
+            w.truth(tr, ahead)
+            rs.append(run_approach(pol_scene, tr, w, vision=vision, seed=args.seed + 5000 + i, in_place_m=in_place_m,
+                                   stop_after_contact_s=0.02))
+        sens[label] = _brief(rs, trajs, in_place_m)
     record["sensitivity"] = sens
     record["policies"] = {k: {kk: vv for kk, vv in v.items() if kk not in ("errors_mm", "speeds")} for k, v in policies.items()}
 
@@ -285,7 +317,8 @@ def run(args) -> dict:
     record["settings"] = {
         "vision": {"rate_hz": vision.rate_hz, "latency_s": vision.latency_s, "noise_m": vision.noise_m, "dropout": vision.dropout},
         "in_place_mm": args.in_place_mm, "speeds_m_s": [0.1, 0.2, 0.3, 0.4, 0.5], "bow_fraction": args.bow,
-        "predictor": "kalman", "handover": "hold", "contact_model": "both", "seed": args.seed,
+        "predictor": "kalman", "handover": "hold", "contact_model": "all", "seed": args.seed,
+        "travel_gains": list(TRAVEL_GAINS), "contact_gains": list(CONTACT_GAINS),
     }
     record["charts"] = charts
     record["wall_time_s"] = time.perf_counter() - t_start

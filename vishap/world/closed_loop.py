@@ -108,19 +108,28 @@ class ApproachResult:
     log: dict | None = None
 
 
-def make_device(scene: Scene, *, substeps: int = 1, ramp_s: float = 0.05):
-    """A MuJoCo PHANToM carrying the scene's passive object, with its servo loop."""
-    from vishap.robot.controller import Controller, Gains
+#: servo gains (Kp N/m, Kv N·s/m) while the device travels to X_d, and while the subject's law renders
+#: contact. Both lie in the robot's measured stable region (``vishap/robot/gains.yaml``); the travel
+#: gains were also checked with ``vishap.robot.stability`` under a 1 ms transport delay, both sensors,
+#: in free space and against 800/1000 N/m walls (stable; Kp 2400+ or Kv ≥ 45 at Kp 1600 oscillate).
+TRAVEL_GAINS = (1600.0, 32.0)
+CONTACT_GAINS = (800.0, 32.0)
+
+
+def make_device(scene: Scene, *, substeps: int = 1, ramp_s: float = 0.05, gains: tuple[float, float] = TRAVEL_GAINS):
+    """A MuJoCo PHANToM carrying the scene's passive object, with its servo loop: the robot's
+    :func:`~vishap.robot.build.build_servo` (gains checked against the stable region, the device's
+    wall-stiffness limit) at ``gains`` = (Kp, Kv)."""
+    from vishap.robot.build import build_servo
+    from vishap.robot.controller import Gains
     from vishap.robot.mjcf import PassiveObject
-    from vishap.robot.plant import MujocoPlant
-    from vishap.robot.servo import ServoLoop
 
     po = scene.passive_object
     shape = "sphere" if po.shape == "sphere" else "plate"
     size = (po.size_m[0] / 2,) if shape == "sphere" else tuple(po.size_m)
-    plant = MujocoPlant(passive_object=PassiveObject(shape, size, po.mass_kg), substeps=substeps)
-    ctrl = Controller(plant.params, Gains(ramp_s=ramp_s), limits=plant.limits)
-    return plant, ctrl, ServoLoop(plant, ctrl)
+    servo = build_servo(PassiveObject(shape, size, po.mass_kg), substeps=substeps,
+                        gains=Gains(kp=gains[0], kv=gains[1], ramp_s=ramp_s))
+    return servo.device, servo.controller, servo
 
 
 def run_approach(
@@ -136,9 +145,14 @@ def run_approach(
     stop_after_contact_s: float | None = None,
     record: bool = False,
     device=None,
+    gains: tuple[tuple[float, float], tuple[float, float]] = (TRAVEL_GAINS, CONTACT_GAINS),
 ) -> ApproachResult:
-    """Simulate one approach–press–slide–leave; ``stop_after_contact_s`` ends it early."""
+    """Simulate one approach–press–slide–leave; ``stop_after_contact_s`` ends it early.
+
+    ``gains`` = ((Kp, Kv) while travelling, (Kp, Kv) while the law renders contact).
+    """
     from vishap.robot import kinematics
+    from vishap.robot.controller import Gains
 
     rng = np.random.default_rng(seed)
     pad = pad or FingerPad()
@@ -152,6 +166,9 @@ def run_approach(
     it = world.update(-1.0 / vision.rate_hz, p_start)
     X_d = it.X_d
     plant.reset(kinematics.ik(X_d + obj.normal * 0.002, plant.params))
+    ramp = ctrl.gains.ramp_s
+    g_travel, g_contact = (Gains(kp=g[0], kv=g[1], ramp_s=ramp) for g in gains)
+    ctrl.set_gains(g_travel)
     ctrl.reset()
     ctrl.set_lambda(None)
     servo.shaper.reset()
@@ -163,6 +180,7 @@ def run_approach(
     V_f = np.gradient(P_f, dt, axis=0)
     t_next_cam = 0.0
     pending: list[tuple[float, float, np.ndarray | None]] = []  # (arrival, capture time, measurement)
+    pressed_state = False  # contact gains in use
     lam_state = None  # the object gain in use: None (identity, free motion) or a diagonal
     dev = np.empty((n_ticks, 3))
     subj = np.empty(n_ticks, dtype=object)
@@ -198,6 +216,11 @@ def run_approach(
         c0 = perf_counter()
         # the subject's law renders contact while the device is under its surface (Eq. 8-9)
         F_law, lam, R = world.contact_render(p_dev, v_dev, it)
+        pressed = lam is not None and world.law.depth(p_dev) > world.engage_m
+        if pressed != pressed_state:  # travel gains until the finger pushes the device in
+            ctrl.set_gains(g_contact if pressed else g_travel)
+            ctrl.set_lambda(lam, None if lam is None else R)
+            pressed_state = pressed
         if lam != lam_state:
             ctrl.set_lambda(lam, None if lam is None else R)
             if lam is None and world.law is not None:

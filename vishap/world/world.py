@@ -32,7 +32,7 @@ from vishap.world.scene import Scene, SceneObject
 __all__ = ["Interaction", "World", "HANDOVERS"]
 
 HANDOVERS = ("hold", "blend", "track")
-CONTACT_MODELS = ("ray", "path", "both", "reach")
+CONTACT_MODELS = ("ray", "path", "both", "reach", "all")
 _UP = np.array([0.0, 0.0, 1.0])
 _ZERO3 = np.zeros(3)
 _EYE3 = np.eye(3)
@@ -71,7 +71,9 @@ class World:
     ``hysteresis_m``, ``hold_m``, ``horizon_s`` (furthest look-ahead), ``contact_margin_m``,
     ``path_margin_m`` and ``clearance_m`` for routing, ``max_force_n`` for the laws, ``contact_model``
     (``ray``: the predicted straight-line motion meets the surface; ``path``: the recent path is
-    extrapolated in height; ``both``: the two fused by their variances), ``engage_m`` (depth beyond which the mode's lateral contact gain applies).
+    extrapolated in height; ``both``: the two fused by their variances; ``reach``: a minimum-jerk
+    reach fitted to the samples, :class:`~vishap.world.predictor.ReachFit`; ``all``: ray, path and
+    reach fused by their variances), ``engage_m`` (depth beyond which the mode's lateral contact gain applies).
     """
 
     def __init__(
@@ -89,7 +91,7 @@ class World:
         path_margin_m: float = 0.003,
         clearance_m: float = 0.01,
         max_force_n: float = DEFAULT_MAX_FORCE_N,
-        contact_model: str = "both",
+        contact_model: str = "all",
         engage_m: float = 0.0003,
     ):
         if contact_model not in CONTACT_MODELS:
@@ -135,7 +137,7 @@ class World:
             p_robot_finger = as_array(p_robot_finger, (3,), "p_robot_finger")
         self.predictor.observe(t, p_robot_finger)
         self.path.observe(t, p_robot_finger)
-        if self.contact_model == "reach":
+        if self.contact_model in ("reach", "all"):
             self.reach.observe(t, p_robot_finger)
         if p_robot_finger is not None:
             self.p_meas = p_robot_finger
@@ -151,12 +153,12 @@ class World:
         imminent = distances[subj.name] < self.imminent_m
         c, tau = contact_point(p, v, subj.normal, subj.offset, horizon_s=self.horizon_s)
         c = subj.project(c)
-        fit = self.path.contact(subj.centre, subj.R) if self.contact_model in ("path", "both") and tau is not None else None
+        fit = self.path.contact(subj.centre, subj.R) if self.contact_model in ("path", "both", "all") and tau is not None else None
         use_ray = self.contact_model != "path" or fit is None
         reach = None
-        if self.contact_model == "reach" and self.p_meas is not None and subj.height(self.p_meas) > 0.0:
+        if self.contact_model in ("reach", "all") and self.p_meas is not None and subj.height(self.p_meas) > 0.0:
             reach = self.reach.contact(subj.centre, subj.R)
-        if reach is not None:
+        if reach is not None and self.contact_model == "reach":
             c = subj.project(reach[0])
         elif tau is None:
             self.meeting.reset()
@@ -166,6 +168,8 @@ class World:
                 c = self.meeting.update(c, tau, np.trace(P[:3, :3]) / 3, np.trace(P[3:, 3:]) / 3)
             if fit is not None:  # the path's own extrapolation, fused by its variance
                 c = self.meeting.update(fit[0], 0.0, fit[1], 0.0)
+            if reach is not None:
+                c = self.meeting.update(reach[0], 0.0, reach[1], 0.0)
             c = subj.project(c)
         X = self._target(subj, p, c, h, in_contact and self._touch_confirmed(subj, p_robot_device))
         via = False
