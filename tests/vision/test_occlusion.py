@@ -109,3 +109,23 @@ def test_a_new_3d_track_is_reported_only_once_a_second_frame_confirms_it(setup):
         pipe.process(StereoFrame(i, i / 30, e.left, e.right))
     f = scene.frame(0.1, a)
     assert pipe.process(StereoFrame(2, 0.1, f.left, f.right)).found
+
+
+def test_a_candidate_without_a_cap_fit_is_not_acquired(setup):
+    """The paper's test alone passes a straight skin edge (the back of the hand: no cap circle fits
+    there); such a candidate may continue a track but never start one."""
+    from vishap.vision.fingertip import Fingertip
+
+    rig, skin = setup
+    pipe = VisionPipeline(rig, skin_model=skin)
+    p = np.array([0.01, 0.0, 0.45])
+    uvl, uvr = (a[0] for a in rig.project(p[None]))
+    cap = rig.K_left[0, 0] * 0.0075 / p[2]
+    tip = lambda uv, c: Fingertip(True, uv=uv, uv_pixel=np.round(uv), direction=np.array([0.0, -1.0]), cap_radius_px=c)
+    full = {"left": "full", "right": "full"}
+    *_, why = pipe._match(tip(uvl, cap), tip(uvr, cap), full, 0.0)
+    assert why == ""
+    *_, why = pipe._match(tip(uvl, 0.0), tip(uvr, cap), full, 0.0)
+    assert why == "no cap circle fits the candidate in the left view"
+    *_, why = pipe._match(tip(uvl, 0.0), tip(uvr, cap), {"left": "tracked", "right": "tracked"}, 0.0)
+    assert why == ""

@@ -52,6 +52,8 @@ class PipelineConfig:
     recheck_jump_px: float = 12.0   # a recheck result this far from the track restarts the track there
     occluded_cap_ratio: float = 0.85  # a cap below this fraction of the other view's is taken as partly hidden
     reach_margin_m: float = 0.02    # 3-D gate: distance the finger may be from the last fix beyond max_speed_m_s·dt
+    require_cap_fit: bool = False   # also in tracked mode, a candidate must have a fitted cap circle (always
+    #   required when (re)acquiring: the paper's test alone passes the back of the hand)
     track_max_age_s: float = 0.5    # a 3-D fix older than this no longer gates (the finger may be anywhere)
     confirm_within_s: float = 0.1   # a fix that starts a new 3-D track must be confirmed this soon
     confirm_new_tracks: bool = False  # hold back a fix that starts a new 3-D track until the next frame agrees
@@ -228,6 +230,8 @@ class VisionPipeline:
             return tl, tr, sp, sp.reason
         lo, hi = (0.5, 1.6) if modes["left"] == modes["right"] == "tracked" else cfg.acquire_radius_band
         for side, tip in (("left", tl), ("right", tr)):
+            if tip.cap_radius_px <= 0 and (cfg.require_cap_fit or modes[side] != "tracked"):
+                return tl, tr, sp, f"no cap circle fits the candidate in the {side} view"
             q = tip.cap_radius_px / self._px_per_m(side, sp.p_cam) / cfg.finger_radius_m
             if tip.cap_radius_px > 0 and not (lo <= q <= hi):
                 return tl, tr, sp, f"cap radius {q:.2f} of a fingertip's in the {side} view (accepted {lo:.2f}–{hi:.2f})"
