@@ -117,7 +117,7 @@ def test_a_candidate_without_a_cap_fit_is_not_acquired(setup):
     from vishap.vision.fingertip import Fingertip
 
     rig, skin = setup
-    pipe = VisionPipeline(rig, skin_model=skin)
+    pipe = VisionPipeline(rig, skin_model=skin, config=PipelineConfig(acquire_needs_cap_fit=True))
     p = np.array([0.01, 0.0, 0.45])
     uvl, uvr = (a[0] for a in rig.project(p[None]))
     cap = rig.K_left[0, 0] * 0.0075 / p[2]
@@ -128,4 +128,7 @@ def test_a_candidate_without_a_cap_fit_is_not_acquired(setup):
     *_, why = pipe._match(tip(uvl, 0.0), tip(uvr, cap), full, 0.0)
     assert why == "no cap circle fits the candidate in the left view"
     *_, why = pipe._match(tip(uvl, 0.0), tip(uvr, cap), {"left": "tracked", "right": "tracked"}, 0.0)
+    assert why == ""
+    pipe = VisionPipeline(rig, skin_model=skin)  # the default (see docs/vision.md)
+    *_, why = pipe._match(tip(uvl, 0.0), tip(uvr, cap), full, 0.0)
     assert why == ""

@@ -116,3 +116,15 @@ def test_torch_batch_backend_gives_the_same_masks(toy, cfg):
     hsv = np.stack([cv2.cvtColor(f, cv2.COLOR_BGR2HSV) for f in frames])
     got = TorchSegmenter(skin, seg.config, seg.background).segment(hsv)
     assert ref[0].any() and got.shape == ref.shape and np.array_equal(got, ref)
+
+
+@pytest.mark.parametrize("k", [3, 5, 7])
+def test_binary_median_is_opencvs_median_of_a_mask(k):
+    import cv2
+
+    from vishap.vision.segment import binary_median
+
+    rng = np.random.default_rng(k)
+    m = (cv2.GaussianBlur(rng.random((61, 83)).astype(np.float32), (0, 0), 3) > 0.5).astype(np.uint8) * 255
+    m[rng.random(m.shape) < 0.05] ^= 255  # speckle, and skin on the border
+    assert np.array_equal(binary_median(m, k), cv2.medianBlur(m, k))

@@ -164,6 +164,11 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
                 break
         xs, ys, ring = cx, cy, cring
     else:
+        if xs.size > 256:  # many candidates (full frame): S_square of all from an integral image first
+            ii = cv2.integral(cv2.threshold(mask, 0, 1, cv2.THRESH_BINARY)[1])
+            s_square = _box_sum(ii, xs, ys, r2) - _box_sum(ii, xs, ys, r2 - 1)
+            keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2)
+            xs, ys = xs[keep], ys[keep]
         xs, ys, ring = ring_test(xs, ys)
     if xs.size == 0:
         return []
@@ -197,6 +202,12 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
             break
         alive &= (xs - xs[k]) ** 2 + (ys - ys[k]) ** 2 > (2 * r2) ** 2
     return tips
+
+
+def _box_sum(ii: np.ndarray, xs: np.ndarray, ys: np.ndarray, h: int) -> np.ndarray:
+    """Sums over the squares of half-side ``h`` centred at (xs, ys), from the integral image ``ii``."""
+    y0, y1, x0, x1 = ys - h, ys + h + 1, xs - h, xs + h + 1
+    return ii[y1, x1] - ii[y0, x1] - ii[y1, x0] + ii[y0, x0]
 
 
 def fit_circle(pts: np.ndarray) -> tuple[np.ndarray, float] | None:

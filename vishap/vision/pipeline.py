@@ -45,15 +45,21 @@ class PipelineConfig:
     #   measured on the standard 'vishap synth' trajectories: fixes a lock on the wrong finger taken
     #   at the hand's entry (button approach 32.7 → 0.23 px), but on renders where the index goes
     #   behind the device's plate it can jump to the thumb
+    recheck_young_frames: int = 3   # … every this many frames while the 3-D track is younger than recheck_frames
+    #   frames: a lock on the wrong finger is taken when a track starts (the index hidden, a knuckle found)
     colour_refine: bool = False     # cap fit on colour unmixed against the background (measured worse on shaded renders)
     filtered_output: bool = True    # report Kalman-filtered tips (else the raw detections)
     full_search_on_miss: bool = True  # a miss in the window triggers a full-frame search of that view
     max_speed_m_s: float = 2.0      # gate of that search: how far the finger may have moved since its last hit
     recheck_jump_px: float = 12.0   # a recheck result this far from the track restarts the track there
+    occluded_pairs: bool = True     # check pairs that may be cut by the device in one view as such (_occluded_pair)
     occluded_cap_ratio: float = 0.85  # a cap below this fraction of the other view's is taken as partly hidden
+    occluded_min_cap_ratio: float = 0.6  # … and below this, too little of it shows to give a disparity
     reach_margin_m: float = 0.02    # 3-D gate: distance the finger may be from the last fix beyond max_speed_m_s·dt
-    require_cap_fit: bool = False   # also in tracked mode, a candidate must have a fitted cap circle (always
-    #   required when (re)acquiring: the paper's test alone passes the back of the hand)
+    acquire_needs_cap_fit: bool = False  # a candidate must have a fitted cap circle to acquire over the full frame
+    #   (the paper's test alone passes a straight skin edge: the back of the hand); off by default: see
+    #   docs/vision.md. A recheck always needs one: it would replace a holding track
+    require_cap_fit: bool = False   # … also in tracked mode
     track_max_age_s: float = 0.5    # a 3-D fix older than this no longer gates (the finger may be anywhere)
     confirm_within_s: float = 0.1   # a fix that starts a new 3-D track must be confirmed this soon
     confirm_new_tracks: bool = False  # hold back a fix that starts a new 3-D track until the next frame agrees
@@ -91,6 +97,7 @@ class VisionPipeline:
         self._t3 = 0.0
         self._pending = None                # (p, t) of a fix that would start a new 3-D track
         self._since_full = 0
+        self._fix_run = 0                   # consecutive frames with a 3-D fix (the 3-D track's age)
         self._size = rig.image_size
 
     # ------------------------------------------------------------------ background
@@ -163,6 +170,7 @@ class VisionPipeline:
             sp = spf if spf.ok else sp
         if sp.ok and not self._confirmed(sp.p_cam, t):
             sp = StereoPoint(False, reason="new fingertip position, not yet confirmed by a second frame")
+        self._fix_run = self._fix_run + 1 if sp.ok else 0
         if sp.ok:
             self._z = float(sp.p_cam[2])
             self._p3, self._t3 = np.asarray(sp.p_cam, dtype=np.float64), t
@@ -182,9 +190,11 @@ class VisionPipeline:
         L, R = cands["left"], cands["right"]
         best, best_cost = None, np.inf
         rejected = []  # (rank sum, reason)
+        rect = {s: self.rig.rectify_points(np.array([tp.uv for tp in cands[s]], dtype=np.float64), s)
+                for s in ("left", "right") if cands[s]}  # each candidate rectified once
         for il, tl in enumerate(L):
             for ir, tr in enumerate(R):
-                tl, tr, sp, why = self._match(tl, tr, modes, t)
+                tl, tr, sp, why = self._match(tl, tr, modes, t, rect["left"][il], rect["right"][ir])
                 if why:
                     which = f" (candidates {il + 1} of {len(L)} left, {ir + 1} of {len(R)} right)" if len(L) * len(R) > 1 else ""
                     rejected.append((il + ir, why + which))
@@ -205,8 +215,9 @@ class VisionPipeline:
             found[bad] = None
         return found, StereoPoint(False, reason=reason)
 
-    def _match(self, tl, tr, modes: dict, t: float):
-        """Check one left/right pair: ``(tip_left, tip_right, StereoPoint, reason)``, reason "" if accepted.
+    def _match(self, tl, tr, modes: dict, t: float, rl=None, rr=None):
+        """Check one left/right pair: ``(tip_left, tip_right, StereoPoint, reason)``, reason "" if accepted
+        (``rl``, ``rr``: the tips in the rectified images, if already known).
 
         The pair must pass the epipolar and disparity checks, and each fitted cap radius, scaled by
         its depth, must be within ``acquire_radius_band`` of ``finger_radius_m`` (0.5–1.6 when both
@@ -217,10 +228,12 @@ class VisionPipeline:
         """
         cfg = self.config
         cl, cr = tl.cap_radius_px, tr.cap_radius_px
-        sp = triangulate_tip(self.rig, tl.uv, tr.uv, cfg.stereo)
+        rect = {s: self.rig.rectify_points(np.asarray(tp.uv, dtype=np.float64).reshape(1, 2), s)[0] if r is None else r
+                for s, tp, r in (("left", tl, rl), ("right", tr, rr))}
+        sp = triangulate_rectified_tip(self.rig, rect["left"], rect["right"], cfg.stereo)
         odd = cl > 0 and cr > 0 and min(cl, cr) < cfg.occluded_cap_ratio * max(cl, cr)
-        if odd or (not sp.ok and sp.epipolar_px <= cfg.stereo.max_epipolar_px + max(cl, cr)):
-            spo, tip, occ = self._occluded_pair(tl, tr, t)
+        if cfg.occluded_pairs and (odd or (not sp.ok and sp.epipolar_px <= cfg.stereo.max_epipolar_px + max(cl, cr))):
+            spo, tip, occ = self._occluded_pair(tl, tr, t, dict(rect))
             if tip is not None:
                 tl, tr = (tip, tr) if occ == "left" else (tl, tip)
                 return tl, tr, spo, ""
@@ -230,20 +243,22 @@ class VisionPipeline:
             return tl, tr, sp, sp.reason
         lo, hi = (0.5, 1.6) if modes["left"] == modes["right"] == "tracked" else cfg.acquire_radius_band
         for side, tip in (("left", tl), ("right", tr)):
-            if tip.cap_radius_px <= 0 and (cfg.require_cap_fit or modes[side] != "tracked"):
+            if tip.cap_radius_px <= 0 and (cfg.require_cap_fit or modes[side] == "recheck"
+                                           or (cfg.acquire_needs_cap_fit and modes[side] == "full")):
                 return tl, tr, sp, f"no cap circle fits the candidate in the {side} view"
             q = tip.cap_radius_px / self._px_per_m(side, sp.p_cam) / cfg.finger_radius_m
             if tip.cap_radius_px > 0 and not (lo <= q <= hi):
                 return tl, tr, sp, f"cap radius {q:.2f} of a fingertip's in the {side} view (accepted {lo:.2f}–{hi:.2f})"
         return tl, tr, sp, ""
 
-    def _occluded_pair(self, tl, tr, t: float):
+    def _occluded_pair(self, tl, tr, t: float, rect: dict):
         """A pair where one view's cap may be cut by an occluder: ``(StereoPoint, corrected tip, view)``;
         no tip when it is not handled so (the StereoPoint, if any, says why it was rejected).
 
-        The occluded view is the one whose track does not hold, else the one whose tip is further
-        from its track's prediction (Mahalanobis); the other view must be tracked without a miss and its cap of a
-        fingertip's size. The cut cap's centre is off by up to a cap radius (a cut fits a smaller
+        The other (reference) view must be tracked without a miss and show a cap of a fingertip's
+        size; of two such views the one nearer its track's prediction (Mahalanobis) is the reference.
+        Too little of the cap shows when the two fitted radii differ by more than
+        ``occluded_min_cap_ratio``. The cut cap's centre is off by up to a cap radius (a cut fits a smaller
         or a flatter, larger circle); its row is replaced by the other view's rectified row (the
         tip lies on that epipolar line) and only its column (the disparity) is used. The 3-D
         point must be within reach of the 3-D track, and the pixel noise of the triangulation is
@@ -252,8 +267,6 @@ class VisionPipeline:
         """
         cfg = self.config
         tips = {"left": tl, "right": tr}
-        rect = {s: self.rig.rectify_points(np.asarray(tp.uv, dtype=np.float64).reshape(1, 2), s)[0]
-                for s, tp in tips.items()}
         reach_px = max(tl.cap_radius_px, tr.cap_radius_px)  # the tip is within a cap radius of any cap point
         epi = abs(rect["left"][1] - rect["right"][1])
         stereo = replace(cfg.stereo, sigma_px=float(np.hypot(cfg.stereo.sigma_px, epi)),
@@ -262,17 +275,17 @@ class VisionPipeline:
         if not sp0.ok:
             return None, None, None
         q = {s: tp.cap_radius_px / self._px_per_m(s, sp0.p_cam) / cfg.finger_radius_m for s, tp in tips.items()}
-        held = [s for s in ("left", "right") if self.trackers[s].tracking and self.trackers[s].kf.misses == 0]
-        if len(held) == 1:
-            other = held[0]
-        elif held:
-            other = min(held, key=lambda s: self._surprise(s, tips[s].uv))
-        else:
-            return None, None, None
-        occ = "right" if other == "left" else "left"
         lo, hi = cfg.acquire_radius_band
-        if not (lo <= q[other] <= hi):
+        held = [s for s in ("left", "right") if self.trackers[s].tracking and self.trackers[s].kf.misses == 0
+                and lo <= q[s] <= hi]
+        if not held:
             return None, None, None
+        other = min(held, key=lambda s: self._surprise(s, tips[s].uv))
+        occ = "right" if other == "left" else "left"
+        c_occ, c_ref = tips[occ].cap_radius_px, tips[other].cap_radius_px
+        if min(c_occ, c_ref) < cfg.occluded_min_cap_ratio * max(c_occ, c_ref):
+            return StereoPoint(False, reason=f"cap mostly hidden in the {occ} view (radius {c_occ:.1f} px, "
+                                             f"{c_ref:.1f} px in the {other} view)"), None, occ
         small = tips[occ]
         tip = replace(small)
         rect[occ] = np.array([rect[occ][0], rect[other][1]])  # on the other view's epipolar line
@@ -338,7 +351,9 @@ class VisionPipeline:
         r = self.K / z
         roi = trk.window(self._size, extra_px=2 * r * (1 + cfg.fingertip.delta_r_frac)) if pred is not None else None
         mode = "tracked" if roi is not None else "full"
-        if roi is not None and cfg.recheck_frames and self._since_full >= cfg.recheck_frames:
+        young = self._fix_run < cfg.recheck_frames and cfg.recheck_young_frames
+        period = cfg.recheck_young_frames if young else cfg.recheck_frames
+        if roi is not None and period and self._since_full >= period:
             roi, mode = None, "recheck"  # a periodic full-frame search: escape a lock on the wrong finger
         if roi is None:
             roi = (0, 0, self._size[0], self._size[1])
