@@ -202,3 +202,38 @@ def test_a_predicted_touch_is_not_taken_for_a_seen_one():
     it3 = w2.update(8 / 30, None, [0.22, 0.0, -0.152])  # the device is pushed 2 mm under: a touch
     p_now = w2.predictor.state_at(8 / 30 + 0.033)[0]
     assert np.allclose(it3.X_d, w2.scene.objects[0].project(p_now))
+
+
+def test_device_leaves_a_raised_object_at_its_level_and_drops_off_its_edge():
+    """From the shelf to a key below it: a way-point at the shelf's level, never up to the safe height
+    (rising would put the device in the descending finger's way), and never through the shelf."""
+    scene = load_scene("panel")
+    w = World(scene, predictor="none")
+    shelf = scene.object("shelf")
+    w.update(0.0, [0.20, 0.0, -0.120])
+    dev = np.array([0.20, 0.005, -0.130])  # resting on the shelf
+    vias = []
+    for i in range(1, 200):  # the finger is over key_a; the device moves 2 mm per update towards X_d
+        it = w.update(i * 0.02, [0.17, 0.04, -0.140], dev)
+        step = it.X_d - dev
+        nxt = dev + step * min(1.0, 0.002 / max(np.linalg.norm(step), 1e-12))
+        assert not shelf.segment_hits(dev, nxt, top_clearance=-0.0005), (i, dev, nxt)
+        assert nxt[2] <= -0.130 + 1e-9  # never above the level it started at
+        if it.via:
+            vias.append(it.X_d.copy())
+        dev = nxt
+    assert vias and all(v[2] == pytest.approx(-0.130) for v in vias)
+    assert np.allclose(dev, [0.17, 0.04, -0.15], atol=1e-6)
+
+
+def test_a_slow_finger_heading_for_a_key_switches_the_subject_early():
+    """At 0.1 m/s the key is more than the look-ahead away in time; the heading still finds it."""
+    scene = load_scene("panel")
+    w = World(scene, latency_s=0.033)
+    start, end = np.array([0.19, 0.0, -0.095]), np.array([0.17, 0.04, -0.1515])
+    L = np.linalg.norm(end - start)
+    for k in range(9):  # 0.1 m/s straight towards key_a: 0.45 s from it, above the shelf's level
+        t = k / 30
+        p = start + (end - start) * min(0.1 * t / L, 1.0)
+        it = w.update(t, p)
+    assert p[2] > -0.12 and np.linalg.norm(end - p) / 0.1 > 0.42 and it.object_name == "key_a"

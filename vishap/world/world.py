@@ -68,7 +68,8 @@ class World:
     Parameters (keyword-only): ``predictor`` (``kalman``, ``cv``, ``none`` or an object with
     ``observe``/``state_at``), ``handover`` (``hold``, ``blend``, ``track``), ``latency_s`` (age of a
     finger sample when it arrives: the prediction is made for ``t + latency_s``), ``imminent_m``,
-    ``hysteresis_m``, ``hold_m``, ``horizon_s`` (furthest look-ahead), ``contact_margin_m``,
+    ``hysteresis_m``, ``hold_m``, ``horizon_s`` (furthest look-ahead), ``heading_horizon_s``
+    (furthest look-ahead of the object the finger heads for), ``contact_margin_m``,
     ``path_margin_m`` and ``clearance_m`` for routing, ``max_force_n`` for the laws, ``contact_model``
     (``ray``: the predicted straight-line motion meets the surface; ``path``: the recent path is
     extrapolated in height; ``both``: the two fused by their variances; ``reach``: a minimum-jerk
@@ -87,6 +88,7 @@ class World:
         hysteresis_m: float = 0.005,
         hold_m: float = 0.004,
         horizon_s: float = 0.4,
+        heading_horizon_s: float = 1.5,
         contact_margin_m: float = 0.0,
         path_margin_m: float = 0.003,
         clearance_m: float = 0.01,
@@ -109,6 +111,7 @@ class World:
         self.latency_s = float(latency_s)
         self.imminent_m, self.hysteresis_m, self.hold_m = float(imminent_m), float(hysteresis_m), float(hold_m)
         self.horizon_s, self.contact_margin_m = float(horizon_s), float(contact_margin_m)
+        self.heading_horizon_s = float(heading_horizon_s)
         self.path_margin_m, self.clearance_m = float(path_margin_m), float(clearance_m)
         self.meeting = MeetingPoint()
         self.laws = {o.name: make_law(o, max_force_n=max_force_n) for o in scene.objects}
@@ -184,9 +187,9 @@ class World:
 
     def _heading_to(self, p, v) -> SceneObject | None:
         """The object whose surface patch the finger's straight-line motion meets first (or None)."""
-        best, best_tau = None, self.horizon_s
+        best, best_tau = None, self.heading_horizon_s
         for o in self.scene.objects:
-            c, tau = contact_point(p, v, o.normal, o.offset, horizon_s=self.horizon_s)
+            c, tau = contact_point(p, v, o.normal, o.offset, horizon_s=self.heading_horizon_s)
             if tau is not None and tau < best_tau and o.inside_extent(c, self.path_margin_m):
                 best, best_tau = o, tau
         return best
@@ -245,9 +248,16 @@ class World:
         return c
 
     def _route(self, start: np.ndarray, X: np.ndarray, subj: SceneObject) -> np.ndarray:
-        """``X`` if the straight path from ``start`` is clear, else a way-point above the obstacles."""
+        """``X`` if the straight path from ``start`` is clear; else, for a target below the start, a way-point
+        at the start's level from which the way down is clear (off a raised object's edge); else a
+        way-point above the obstacles."""
         if self._clear(start, X):
             return X
+        for u in (0.25, 0.5, 0.75, 1.0):  # first along the start's level towards X, then down to it
+            via = start + (X - start) * u
+            via[2] = start[2]
+            if via[2] > X[2] and self._clear(start, via) and self._clear(via, X):
+                return via
         above = X.copy()
         above[2] = max(self.z_safe, X[2])
         if self._clear(start, above):
