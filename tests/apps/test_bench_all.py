@@ -5,7 +5,7 @@ import pytest
 
 from vishap._core.errors import ConfigError
 from vishap.bench import all as bench_all
-from vishap.cli.demo import parse_fault
+from vishap.cli.demo import parse_fault, parse_travel
 
 
 def test_index_links_every_chart_and_json(tmp_path):
@@ -39,6 +39,13 @@ def test_parse_fault():
         parse_fault("meteor:1:2")
     with pytest.raises(argparse.ArgumentTypeError):
         parse_fault("nan:a:b")
+
+
+def test_parse_travel():
+    assert parse_travel("0.6,40") == {"travel_speed_m_s": 0.6, "travel_accel_m_s2": 40.0}
+    assert parse_travel("off") == {"travel_speed_m_s": None}
+    with pytest.raises(argparse.ArgumentTypeError, match="SPEED,ACCEL"):
+        parse_travel("fast")
 
 
 def test_quick_args_prefer_the_modules_own_setting():

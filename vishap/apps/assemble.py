@@ -78,8 +78,13 @@ def build(cfg: DemoConfig, out: Path) -> Stages:
     build_mod = need("vishap.robot.build", "robot (servo builder)")
     shape = "sphere" if po_spec.shape == "sphere" else "plate"
     size = (po_spec.size_m[0] / 2,) if shape == "sphere" else tuple(po_spec.size_m)
+    travel = None
+    if cfg.travel_speed_m_s is not None:
+        from vishap.robot.travel import TravelLimiter
+
+        travel = TravelLimiter(cfg.travel_speed_m_s, cfg.travel_accel_m_s2)
     servo = build_mod.build_servo(mjcf.PassiveObject(shape, size, po_spec.mass_kg), substeps=cfg.substeps,
-                                  sensor=cfg.encoder, policy=cfg.servo_policy)
+                                  sensor=cfg.encoder, policy=cfg.servo_policy, travel=travel)
     plant, controller = servo.device, servo.controller
     T_est, calib_report = calibrate(cfg, rig, out)
     world = make_world(cfg, scene, rig, T_est)

@@ -12,7 +12,7 @@ import json
 
 from vishap.apps.config import FAULT_KINDS, SCENES
 
-__all__ = ["register", "parse_fault"]
+__all__ = ["register", "parse_fault", "parse_travel"]
 
 
 def parse_fault(text: str) -> dict:
@@ -25,6 +25,17 @@ def parse_fault(text: str) -> dict:
         return {"kind": parts[0], "t_start": float(parts[1]), "t_end": float(parts[2])}
     except ValueError:
         raise argparse.ArgumentTypeError(f"times must be seconds, got {text!r}") from None
+
+
+def parse_travel(text: str) -> dict:
+    """``SPEED,ACCEL`` (m/s, m/s²) or ``off`` → the demo's travel-limit fields."""
+    if text.strip().lower() == "off":
+        return {"travel_speed_m_s": None}
+    try:
+        speed, accel = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected SPEED,ACCEL (m/s, m/s²) or 'off', got {text!r}") from None
+    return {"travel_speed_m_s": speed, "travel_accel_m_s2": accel}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -42,6 +53,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="camera_robot.yaml (default: run the camera-robot calibration in simulation first)")
     p.add_argument("--fault", action="append", type=parse_fault, default=[], metavar="KIND:T0:T1",
                    help=f"inject a fault in [T0, T1) s; KIND one of {', '.join(FAULT_KINDS)} (repeatable)")
+    p.add_argument("--travel", type=parse_travel, default=parse_travel("0.6,40"), metavar="SPEED,ACCEL",
+                   help="device travel limits in m/s and m/s² (default 0.6,40; docs/robot.md); 'off' for none")
     p.add_argument("--no-video", action="store_true", help="skip the MP4 (faster)")
     p.add_argument("--no-frames", action="store_true",
                    help="do not keep the lossless frames (≈ 0.3 MB per pair at 480x360; replay needs them)")
@@ -69,6 +82,7 @@ def _run(args: argparse.Namespace) -> int:
                   "video": not args.no_video, "save_frames": not args.no_frames}
         if args.frames is not None:
             fields["frames"] = args.frames
+        fields.update(args.travel)
         cfg = validate(DemoConfig, fields, file=None)
         summary = run_demo(cfg, args.out, progress=True)
     print(json.dumps(summary))

@@ -28,6 +28,7 @@ def build_servo(
     sensor: str = "exact",
     q0=None,
     force_callback=None,
+    travel=None,
 ) -> ServoLoop:
     """A :class:`ServoLoop` over a :class:`MujocoPlant` (``servo.device``, ``servo.controller``).
 
@@ -45,4 +46,4 @@ def build_servo(
         max_stiffness_n_m=cfg.max_stiffness_n_m,
     )
     ctrl = Controller(plant.params, gains or file_gains, limits=plant.limits)
-    return ServoLoop(plant, ctrl, policy=policy, force_callback=force_callback)
+    return ServoLoop(plant, ctrl, policy=policy, force_callback=force_callback, travel=travel)

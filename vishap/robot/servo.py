@@ -28,6 +28,7 @@ from vishap._core.errors import ConfigError
 from vishap.robot.controller import Controller
 from vishap.robot.device import Device
 from vishap.robot.kinematics import tip_state_scalar
+from vishap.robot.travel import TravelLimiter
 
 __all__ = ["POLICIES", "TargetShaper", "ServoLoop"]
 
@@ -148,11 +149,13 @@ class ServoLoop:
         policy: str = "hold",
         horizon: float = 1.5,
         force_callback: Callable | None = None,
+        travel: TravelLimiter | None = None,
     ):
         self.device = device
         self.controller = controller
         self.shaper = TargetShaper(policy, horizon=horizon)
         self.force_callback = force_callback
+        self.travel = travel  # optional speed/acceleration limits between the shaper and the controller
         self.n_ticks = 0
         self._read = device.read_scalar
         self._write = device.command_torque_scalar
@@ -172,15 +175,20 @@ class ServoLoop:
         if X_d is not None:
             self._offer(t, X_d, t_sample)
         tg = self._at(t)
-        if tg is None or self.force_callback is not None:
+        travel = self.travel
+        if tg is None or self.force_callback is not None or (travel is not None and not travel.ready):
             px, py, pz, vx, vy, vz = tip_state_scalar(q1, q2, q3, w1, w2, w3, self._l1, self._l2)
             if tg is None:  # no target yet: hold where the arm is
                 self.shaper.push(t, px, py, pz)
                 tg = self._at(t)
+            if travel is not None and not travel.ready:  # travel starts from where the arm is
+                travel.reset(px, py, pz, vx, vy, vz)
             if self.force_callback is not None:
                 F = self.force_callback(t, np.array((px, py, pz)), np.array((vx, vy, vz)))
                 if F is not None:
                     extra_force_robot = F if extra_force_robot is None else np.asarray(F) + np.asarray(extra_force_robot)
+        if travel is not None:
+            tg = travel.step(t, *tg)
         if extra_force_robot is None:
             tau = self._compute(t, q1, q2, q3, w1, w2, w3, *tg)
         else:

@@ -1,0 +1,75 @@
+import math
+
+import numpy as np
+import pytest
+
+from vishap._core.errors import ConfigError
+from vishap.robot.build import build_servo
+from vishap.robot.travel import TravelLimiter
+
+
+def _run(lim, target, v_target=(0.0, 0.0, 0.0), seconds=0.5, dt=1e-3, start=(0.0, 0.0, 0.0)):
+    lim.reset(*start)
+    xs, vs = [], []
+    for k in range(int(seconds / dt) + 1):
+        t = k * dt
+        tx = np.asarray(target, float) + np.asarray(v_target, float) * t
+        out = lim.step(t, *tx, *v_target)
+        xs.append(out[:3])
+        vs.append(out[3:])
+    return np.array(xs), np.array(vs), dt
+
+
+def test_a_jump_is_travelled_within_the_speed_and_acceleration_limits_without_overshoot():
+    lim = TravelLimiter(0.5, 10.0)
+    xs, vs, dt = _run(lim, (0.03, 0.0, -0.02))
+    speed = np.linalg.norm(vs, axis=1)
+    accel = np.linalg.norm(np.diff(vs, axis=0), axis=1) / dt
+    assert speed.max() <= 0.5 + 1e-9 and accel.max() <= 10.0 + 1e-6
+    goal = np.array([0.03, 0.0, -0.02])
+    dist = np.linalg.norm(xs - goal, axis=1)
+    assert dist[-1] < 1e-6
+    # straight and without overshoot: the remaining distance never grows along the way
+    assert np.all(np.diff(dist) <= 1e-9)
+    # about as fast as the limits allow: 36 mm at 10 m/s², peak 0.5 m/s → ≈ 0.12 s (bang-bang 0.12 s)
+    t_arrive = dt * np.argmax(dist < 1e-4)
+    assert t_arrive < 0.16
+
+
+def test_a_moving_target_is_followed_without_lag_once_caught():
+    lim = TravelLimiter(0.6, 20.0)
+    xs, vs, dt = _run(lim, (0.01, 0.0, 0.0), v_target=(0.1, 0.05, 0.0), seconds=0.6)
+    t = np.arange(len(xs)) * dt
+    truth = np.array([0.01, 0.0, 0.0]) + np.outer(t, [0.1, 0.05, 0.0])
+    assert np.abs(xs[-100:] - truth[-100:]).max() < 1e-6
+    assert np.allclose(vs[-1], [0.1, 0.05, 0.0], atol=1e-6)
+
+
+def test_bad_limits_are_refused_with_the_field_named():
+    with pytest.raises(ConfigError, match="travel.max_accel_m_s2"):
+        TravelLimiter(0.5, -1.0)
+    with pytest.raises(ConfigError, match="travel.max_speed_m_s"):
+        TravelLimiter(math.nan, 10.0)
+
+
+def test_the_servo_with_travel_limits_moves_the_arm_without_saturating():
+    """A 25 mm target jump: unlimited, the PD asks for more than the peak force and clips; limited,
+    the arm gets there with a fraction of it and arrives within the limits' time."""
+    results = {}
+    for name, travel in (("free", None), ("limited", TravelLimiter(0.6, 20.0))):
+        servo = build_servo(policy="hold", travel=travel)
+        ctrl = servo.controller
+        for k in range(700):  # settle where the arm starts (past the 0.5 s force ramp-up)
+            servo.tick(k * 1e-3)
+        p0 = np.array(ctrl.p)
+        goal = p0 + np.array([0.0, 0.025, 0.0])
+        peak, t_in = 0.0, None
+        for k in range(700, 1300):
+            servo.tick(k * 1e-3, goal)
+            peak = max(peak, float(np.linalg.norm(ctrl.F_pd)))
+            if t_in is None and np.linalg.norm(np.array(ctrl.p) - goal) < 1e-3:
+                t_in = (k - 700) * 1e-3
+        results[name] = (peak, t_in, ctrl.n_saturated)
+    assert results["free"][2] > 0 and results["limited"][2] == 0
+    assert results["limited"][0] < 0.5 * results["free"][0]
+    assert results["limited"][1] is not None and results["limited"][1] < 0.2
