@@ -11,6 +11,7 @@ from typing import Literal
 from pydantic import Field, field_validator, model_validator
 
 from vishap._core.config import Schema
+from vishap.robot.travel import DEFAULT_ACCEL_M_S2, DEFAULT_SPEED_M_S
 
 __all__ = ["FaultSpec", "DemoConfig", "SCENES", "FAULT_KINDS"]
 
@@ -55,8 +56,8 @@ class DemoConfig(Schema):
     servo_policy: Literal["hold", "interpolate", "extrapolate"] = Field(
         default="interpolate", description="how the servo bridges X_d samples (robot TargetShaper)")
     travel_speed_m_s: float | None = Field(
-        default=0.6, gt=0.0, le=5.0, description="device target: speed limit of its travel (robot TravelLimiter); None: unlimited")
-    travel_accel_m_s2: float = Field(default=40.0, gt=0.0, le=1000.0, description="device target: acceleration limit of its travel")
+        default=DEFAULT_SPEED_M_S, gt=0.0, le=5.0, description="device target: speed limit of its travel (robot TravelLimiter); None: unlimited")
+    travel_accel_m_s2: float = Field(default=DEFAULT_ACCEL_M_S2, gt=0.0, le=1000.0, description="device target: acceleration limit of its travel")
     finger_noise_m: float | None = Field(
         default=None, gt=0.0, description="fingertip noise σ the world's Kalman predictor assumes; None: from the "
                                           "stereo model (vision's pixel σ) at the object's distance")

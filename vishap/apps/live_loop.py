@@ -29,6 +29,7 @@ TIP_RADIUS_M = 0.008  # the fingertip cap radius the synthetic hand and the worl
 def make_guarded_servo(device_path: str, passive_object: tuple | None = None):
     """Build the device (``"module:Class"``), its controller and the guarded servo (runs in the child)."""
     from vishap.robot.controller import Controller
+    from vishap.robot.travel import TravelLimiter
     from vishap.runtime.device_servo import DeviceServo
 
     mod, cls = device_path.split(":")
@@ -39,7 +40,7 @@ def make_guarded_servo(device_path: str, passive_object: tuple | None = None):
         device = device_cls(passive_object=PassiveObject(*passive_object))
     else:
         device = device_cls()
-    return DeviceServo(device, Controller(device.params, limits=device.limits))
+    return DeviceServo(device, Controller(device.params, limits=device.limits), travel=TravelLimiter())
 
 
 def run_live_loop(scene: str, *, out, source, rig, T_robot_cam, device_path: str, duration_s: float,

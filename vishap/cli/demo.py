@@ -53,7 +53,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="camera_robot.yaml (default: run the camera-robot calibration in simulation first)")
     p.add_argument("--fault", action="append", type=parse_fault, default=[], metavar="KIND:T0:T1",
                    help=f"inject a fault in [T0, T1) s; KIND one of {', '.join(FAULT_KINDS)} (repeatable)")
-    p.add_argument("--travel", type=parse_travel, default=parse_travel("0.6,40"), metavar="SPEED,ACCEL",
+    p.add_argument("--travel", type=parse_travel, default={}, metavar="SPEED,ACCEL",
                    help="device travel limits in m/s and m/s² (default 0.6,40; docs/robot.md); 'off' for none")
     p.add_argument("--no-video", action="store_true", help="skip the MP4 (faster)")
     p.add_argument("--no-frames", action="store_true",

@@ -16,7 +16,12 @@ import math
 
 from vishap._core.errors import ConfigError
 
-__all__ = ["TravelLimiter"]
+__all__ = ["TravelLimiter", "DEFAULT_SPEED_M_S", "DEFAULT_ACCEL_M_S2"]
+
+#: The demos' limits, chosen on the wall demo (docs/robot.md, "Travel limits"): no heat limiting, the
+#: meeting as fast as without limits.
+DEFAULT_SPEED_M_S = 0.6
+DEFAULT_ACCEL_M_S2 = 40.0
 
 BRAKE = 0.8  # braking curve at 80 % of the acceleration limit: the margin a 1 ms step needs to stop on the target
 
@@ -26,7 +31,7 @@ class TravelLimiter:
 
     __slots__ = ("max_speed", "max_accel", "settle_gain", "_x", "_v", "_t", "ready")
 
-    def __init__(self, max_speed_m_s: float = 0.6, max_accel_m_s2: float = 20.0, *, settle_gain_hz: float = 100.0):
+    def __init__(self, max_speed_m_s: float = DEFAULT_SPEED_M_S, max_accel_m_s2: float = DEFAULT_ACCEL_M_S2, *, settle_gain_hz: float = 100.0):
         for name, v in (("max_speed_m_s", max_speed_m_s), ("max_accel_m_s2", max_accel_m_s2), ("settle_gain_hz", settle_gain_hz)):
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"must be a finite number > 0, got {v!r}", field=f"travel.{name}")

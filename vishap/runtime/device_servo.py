@@ -16,6 +16,7 @@ from vishap.robot.kinematics import tip_state_scalar
 from vishap.robot.params import DEFAULT, WORKSPACE_MAX, WORKSPACE_MIN
 from vishap.robot.plant import MujocoPlant
 from vishap.robot.servo import ServoLoop
+from vishap.robot.travel import TravelLimiter
 from vishap.runtime.safety import Fault, TargetGuard
 
 __all__ = ["TARGET_SIZE", "STATE_SIZE", "ACTIONS", "FAULTS", "DeviceServo", "make_sim_device_servo", "target_record"]
@@ -37,8 +38,9 @@ def target_record(X_d, made_at: float, confidence: float, calibrated: bool = Tru
 class DeviceServo:
     """Guarded servo over any :class:`~vishap.robot.device.Device`."""
 
-    def __init__(self, device, controller: Controller, *, policy: str = "hold", guard: TargetGuard | None = None):
-        self.loop = ServoLoop(device, controller, policy=policy)
+    def __init__(self, device, controller: Controller, *, policy: str = "hold", guard: TargetGuard | None = None,
+                 travel: TravelLimiter | None = None):
+        self.loop = ServoLoop(device, controller, policy=policy, travel=travel)
         self.guard = guard or TargetGuard(WORKSPACE_MIN, WORKSPACE_MAX, RETREAT_POINT)
         self._out = np.zeros(STATE_SIZE)
         self._action_code = {a: i for i, a in enumerate(ACTIONS)}
@@ -66,4 +68,4 @@ class DeviceServo:
 def make_sim_device_servo(policy: str = "hold") -> DeviceServo:
     """A guarded servo over the MuJoCo PHANToM with default gains (picklable factory for live runs)."""
     plant = MujocoPlant(DEFAULT)
-    return DeviceServo(plant, Controller(DEFAULT), policy=policy)
+    return DeviceServo(plant, Controller(DEFAULT), policy=policy, travel=TravelLimiter())
