@@ -283,7 +283,9 @@ def run(args) -> dict:
                          gains=(g, CONTACT_GAINS))
             for i, tr in enumerate(trajs)
         ]
-        policies[f"{pred}+{ho}+{cm} Kp{g[0]:.0f}"] = {**_summary(rs, in_place_m), "errors_mm": [r.contact_error_m * 1e3 for r in rs],
+        tag = {("kalman", "hold", "both", OLD_GAINS): " (previous default)",
+               ("kalman", "hold", "all", NEW_GAINS): " (default)"}.get((pred, ho, cm, g), "")
+        policies[f"{pred}+{ho}+{cm} Kp{g[0]:.0f}{tag}"] = {**_summary(rs, in_place_m), "errors_mm": [r.contact_error_m * 1e3 for r in rs],
                                                      "speeds": [r.speed_m_s for r in rs]}
     charts.append(str(_plot_policies(policies, out / "policies.png")))
 
@@ -352,10 +354,10 @@ def _plot_fig6(fig6, scenes, path):
 
 
 def _plot_policies(policies, path):
-    fig, (a1, a2) = new_figure(1, 2, figsize=(11, 4.2))
+    fig, (a1, a2) = new_figure(1, 2, figsize=(13, 4.6))
     names = list(policies)
     a1.boxplot([np.maximum(policies[k]["errors_mm"], 1e-3) for k in names], showfliers=True)
-    a1.set_xticks(range(1, len(names) + 1), names, rotation=25, fontsize=7)
+    a1.set_xticks(range(1, len(names) + 1), names, rotation=30, fontsize=6, ha="right")
     a1.set_yscale("log")
     a1.axhline(1.0, color="tab:red", ls="--", lw=1, label="goal 1 mm")
     a1.set_ylabel("contact-position error (mm)")
@@ -365,10 +367,12 @@ def _plot_policies(policies, path):
         sp = np.array(policies[k]["speeds"])
         e = np.array(policies[k]["errors_mm"])
         us = np.unique(sp)
-        a2.plot(us, [np.mean(e[sp == u] <= 1.0) for u in us], "o-", label=k)
+        mark = "default" in k
+        a2.plot(us, [np.mean(e[sp == u] <= 1.0) for u in us], "o-", lw=2.5 if mark else 1.0,
+                alpha=1.0 if mark else 0.55, label=f"{k}: {np.mean(e <= 1.0):.0%}")
     a2.set_xlabel("peak finger speed (m/s)")
     a2.set_ylabel("device in place (≤ 1 mm) at the touch")
     a2.set_ylim(-0.05, 1.05)
     a2.grid(alpha=0.3)
-    a2.legend(fontsize=8)
+    a2.legend(fontsize=6.5, loc="center left", bbox_to_anchor=(1.01, 0.5))
     return save_figure(fig, path)

@@ -258,12 +258,18 @@ def contact_point(p_robot, v_robot, normal, offset_m: float, *, horizon_s: float
 
 
 def _min_jerk(s):
-    s = np.clip(s, 0.0, 1.0)
-    return s**3 * (10.0 - 15.0 * s + 6.0 * s * s)
+    s = np.clip(s, 0.0, 1.0, out=s)
+    m = 6.0 * s - 15.0
+    m *= s
+    m += 10.0
+    m *= s
+    m *= s
+    m *= s
+    return m
 
 
 _TAU_TABLE = np.linspace(0.0, 1.0, 1001)
-_M_TABLE = _min_jerk(_TAU_TABLE)
+_M_TABLE = _min_jerk(_TAU_TABLE.copy())
 
 
 class ReachFit:
@@ -285,7 +291,7 @@ class ReachFit:
 
     def __init__(self, *, window_s: float = 1.0, meas_std_m: float = 0.0008, end_depth_m: float = 0.0015,
                  end_std_m: float = 0.003, bow_std_m: float = 0.01, reach_std_m: float = 0.05, durations_s=None,
-                 t0_step_s: float = 0.01):
+                 t0_step_s: float = 0.01, max_samples: int = 40):
         self.window_s = float(window_s)
         self.w = 1.0 / float(meas_std_m) ** 2
         self.end_depth, self.w_end = float(end_depth_m), 1.0 / float(end_std_m) ** 2
@@ -293,6 +299,7 @@ class ReachFit:
         self.w_reach = 1.0 / float(reach_std_m) ** 2
         self.T = np.geomspace(0.1, 1.6, 40) if durations_s is None else np.asarray(durations_s, dtype=float)
         self.t0_step = float(t0_step_s)
+        self.max_samples = int(max_samples)
         self.reset()
 
     def reset(self) -> None:
@@ -311,35 +318,46 @@ class ReachFit:
         self.t_touch = None
         if len(self.samples) < 4:
             return None
-        ts = np.array([t for t, _ in self.samples])
-        q = (np.array([p for _, p in self.samples]) - centre) @ R_robot_obj
+        samples = self.samples
+        if len(samples) > self.max_samples:  # a fast camera: evenly spaced samples, the latest kept
+            idx = np.round(np.linspace(0, len(samples) - 1, self.max_samples)).astype(int)
+            samples = [samples[i] for i in idx]
+        ts = np.array([t for t, _ in samples])
+        q = (np.array([p for _, p in samples]) - centre) @ R_robot_obj
         t_last = ts[-1]
         t0 = np.arange(t_last - self.window_s - 0.5, t_last + 1e-9, self.t0_step)
         T0, TT = np.meshgrid(t0, self.T, indexing="ij")
         T0, TT = T0.ravel(), TT.ravel()
         m = _min_jerk((ts[None, :] - T0[:, None]) / TT[:, None])  # (K, N)
         w = self.w
-        # height: h = hS (1 − m) + hE m, prior hE ~ N(−end_depth, end_std²)
+        # Each fit is a regularised least-squares problem A x = b; its minimum is c − x·b (no residuals
+        # formed). Height: h = hS (1 − m) + hE m, prior hE ~ N(−end_depth, end_std²).
         h = q[:, 2]
-        a11 = w * ((1 - m) ** 2).sum(1) + 1e-6 * w  # keeps a reach ended before the window solvable
-        a12 = w * ((1 - m) * m).sum(1)
-        a22 = w * (m * m).sum(1) + self.w_end
-        b1 = w * ((1 - m) @ h)
-        b2 = w * (m @ h) - self.w_end * self.end_depth
+        sm, smm = m.sum(1), (m * m).sum(1)
+        n = float(len(ts))
+        a11 = w * (n - 2 * sm + smm) + 1e-6 * w  # keeps a reach ended before the window solvable
+        a12 = w * (sm - smm)
+        a22 = w * smm + self.w_end
+        mh = m @ h
+        b1 = w * (h.sum() - mh)
+        b2 = w * mh - self.w_end * self.end_depth
         det = a11 * a22 - a12 * a12
         hS = (a22 * b1 - a12 * b2) / det
         hE = (a11 * b2 - a12 * b1) / det
-        chi = w * (((hS[:, None] * (1 - m) + hE[:, None] * m) - h) ** 2).sum(1) + self.w_end * (hE + self.end_depth) ** 2
-        # tangential: u = a + b m + c β, β = 4 m (1 − m), prior c ~ N(0, bow_std²)
-        beta = 4.0 * m * (1.0 - m)
-        X = np.stack([np.ones_like(m), m, beta], axis=2)  # (K, N, 3)
-        A = w * np.einsum("kni,knj->kij", X, X)
-        A[:, 2, 2] += self.w_bow
-        A[:, 1, 1] += self.w_reach  # a candidate whose phase hardly moves cannot claim a long reach
-        B = w * np.einsum("kni,nj->kij", X, q[:, :2])  # (K, 3, 2)
-        coef = np.linalg.solve(A, B)
-        res = np.einsum("kni,kij->knj", X, coef) - q[None, :, :2]
-        chi += w * (res**2).sum((1, 2)) + self.w_bow * (coef[:, 2, :] ** 2).sum(1) + self.w_reach * (coef[:, 1, :] ** 2).sum(1)
+        chi = w * float(h @ h) + self.w_end * self.end_depth**2 - (hS * b1 + hE * b2)
+        # tangential: u = a + b m + c β, β = 4 m (1 − m), priors b ~ N(0, reach_std²), c ~ N(0, bow_std²)
+        beta = 4.0 * (m - m * m)
+        A = np.empty((len(T0), 3, 3))
+        A[:, 0, 0] = w * n
+        A[:, 0, 1] = A[:, 1, 0] = w * sm
+        A[:, 0, 2] = A[:, 2, 0] = w * beta.sum(1)
+        A[:, 1, 1] = w * smm + self.w_reach  # a candidate whose phase hardly moves cannot claim a long reach
+        A[:, 1, 2] = A[:, 2, 1] = w * (m * beta).sum(1)
+        A[:, 2, 2] = w * (beta * beta).sum(1) + self.w_bow
+        uv_data = q[:, :2]
+        B = np.stack([np.broadcast_to(w * uv_data.sum(0), (len(T0), 2)), w * (m @ uv_data), w * (beta @ uv_data)], axis=1)
+        coef = np.linalg.solve(A, B)  # (K, 3, 2)
+        chi += w * float((uv_data * uv_data).sum()) - (coef * B).sum((1, 2))
         # touch phase: h crosses 0, else the end of the reach
         mt = np.where((hE < 0.0) & (hS > 0.0), hS / np.maximum(hS - hE, 1e-12), 1.0)
         uv = coef[:, 0, :] + coef[:, 1, :] * mt[:, None] + coef[:, 2, :] * (4.0 * mt * (1.0 - mt))[:, None]
