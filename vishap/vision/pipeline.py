@@ -97,6 +97,7 @@ class VisionPipeline:
         self._t3 = 0.0
         self._pending = None                # (p, t) of a fix that would start a new 3-D track
         self._since_full = 0
+        self._window_tips: set = set()      # ids of this frame's candidates measured in the tracking window
         self._fix_run = 0                   # consecutive frames with a 3-D fix (the 3-D track's age)
         self._size = rig.image_size
 
@@ -147,6 +148,7 @@ class VisionPipeline:
                                timings={"total_ms": (time.perf_counter() - t0) * 1e3})
         timings: dict[str, float] = {}
         cands, modes = {}, {}
+        self._window_tips = set()
         for side, img in (("left", frame.left), ("right", frame.right)):
             cands[side], modes[side] = self._detect(side, img, t, timings)
         t1 = time.perf_counter()
@@ -241,9 +243,10 @@ class VisionPipeline:
                 return tl, tr, spo, spo.reason
         if not sp.ok:
             return tl, tr, sp, sp.reason
-        lo, hi = (0.5, 1.6) if modes["left"] == modes["right"] == "tracked" else cfg.acquire_radius_band
+        on_track = all(modes[s] == "tracked" or id(tp) in self._window_tips for s, tp in (("left", tl), ("right", tr)))
+        lo, hi = (0.5, 1.6) if on_track else cfg.acquire_radius_band
         for side, tip in (("left", tl), ("right", tr)):
-            if tip.cap_radius_px <= 0 and (cfg.require_cap_fit or modes[side] == "recheck"
+            if tip.cap_radius_px <= 0 and (cfg.require_cap_fit or (modes[side] == "recheck" and id(tip) not in self._window_tips)
                                            or (cfg.acquire_needs_cap_fit and modes[side] == "full")):
                 return tl, tr, sp, f"no cap circle fits the candidate in the {side} view"
             q = tip.cap_radius_px / self._px_per_m(side, sp.p_cam) / cfg.finger_radius_m
@@ -340,6 +343,27 @@ class VisionPipeline:
         trk = self.trackers[side]
         return trk.kf.mahalanobis(uv) if trk.tracking else 0.0
 
+    def _keep_track_measurement(self, tips: list, image, seg, window, pred, z) -> list:
+        """In a periodic recheck: a full-frame candidate on the tracked finger (within
+        ``recheck_jump_px`` of the window's detection) is replaced by the window's detection, so a
+        recheck that finds the same finger measures it exactly as a tracked frame would; it only
+        changes the track when it ranks another finger first."""
+        cfg = self.config
+        wr = snap_roi(window, seg.config.tile, self._size)
+        found = detect_fingertips(seg.segment(image, wr), self.K / z, cfg.fingertip, prior_uv=pred - wr[:2], max_tips=1)
+        if not found:
+            return tips
+        w = found[0]
+        w.uv = w.uv + wr[:2]
+        out = []
+        for tp in tips:
+            if np.hypot(*(tp.uv - w.uv)) <= cfg.recheck_jump_px:
+                w.extremity_px = tp.extremity_px
+                self._window_tips.add(id(w))
+                tp = w
+            out.append(tp)
+        return out
+
     def _detect(self, side: str, image: np.ndarray, t: float, timings: dict):
         cfg = self.config
         trk = self.trackers[side]
@@ -353,8 +377,9 @@ class VisionPipeline:
         mode = "tracked" if roi is not None else "full"
         young = self._fix_run < cfg.recheck_frames and cfg.recheck_young_frames
         period = cfg.recheck_young_frames if young else cfg.recheck_frames
+        window = None
         if roi is not None and period and self._since_full >= period:
-            roi, mode = None, "recheck"  # a periodic full-frame search: escape a lock on the wrong finger
+            window, roi, mode = roi, None, "recheck"  # a periodic full-frame search: escape a lock on the wrong finger
         if roi is None:
             roi = (0, 0, self._size[0], self._size[1])
         roi = snap_roi(roi, seg.config.tile, self._size)
@@ -373,6 +398,8 @@ class VisionPipeline:
                         tips.append(tip)
             tips.sort(key=lambda tp: -tp.extremity_px)
             tips = tips[:n_max]
+        if window is not None and tips:
+            tips = self._keep_track_measurement(tips, image, seg, window, pred, z)
         if not tips and mode == "tracked" and cfg.full_search_on_miss:
             # the finger left the window (fast motion): search this view's full frame now
             full = snap_roi((0, 0, self._size[0], self._size[1]), seg.config.tile, self._size)
