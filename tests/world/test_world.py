@@ -218,11 +218,11 @@ def test_device_leaves_a_raised_object_at_its_level_and_drops_off_its_edge():
         step = it.X_d - dev
         nxt = dev + step * min(1.0, 0.002 / max(np.linalg.norm(step), 1e-12))
         assert not shelf.segment_hits(dev, nxt, top_clearance=-0.0005), (i, dev, nxt)
-        assert nxt[2] <= -0.130 + 1e-9  # never above the level it started at
+        assert nxt[2] <= -0.130 + w.path_margin_m + 1e-9  # never above the level it started at (+ margin)
         if it.via:
             vias.append(it.X_d.copy())
         dev = nxt
-    assert vias and all(v[2] == pytest.approx(-0.130) for v in vias)
+    assert vias and all(v[2] == pytest.approx(-0.130 + w.path_margin_m) for v in vias)
     assert np.allclose(dev, [0.17, 0.04, -0.15], atol=1e-6)
 
 

@@ -112,6 +112,7 @@ class World:
         self.imminent_m, self.hysteresis_m, self.hold_m = float(imminent_m), float(hysteresis_m), float(hold_m)
         self.horizon_s, self.contact_margin_m = float(horizon_s), float(contact_margin_m)
         self.heading_horizon_s = float(heading_horizon_s)
+        self.moving_m_s = 0.05  # finger speed above which a subject chosen by heading is kept
         self.path_margin_m, self.clearance_m = float(path_margin_m), float(clearance_m)
         self.meeting = MeetingPoint()
         self.laws = {o.name: make_law(o, max_force_n=max_force_n) for o in scene.objects}
@@ -130,6 +131,7 @@ class World:
         self.path.reset()
         self.reach.reset()
         self._heading: str | None = None
+        self._by_heading = False
         if hasattr(self.predictor, "reset"):
             self.predictor.reset()
 
@@ -149,7 +151,7 @@ class World:
             return Interaction(t, None, None, X.copy(), float("-inf"), False, False, _UP.copy())
         p, v = self.predictor.state_at(t + self.latency_s)
         distances = {o.name: o.signed_distance(p) for o in self.scene.objects}
-        subj = self._choose(distances, self._heading_to(p, v))
+        subj = self._choose(distances, self._heading_to(p, v), float(np.linalg.norm(v)) > self.moving_m_s)
         h = subj.height(p)
         depth = -h
         in_contact = depth >= -self.contact_margin_m and subj.inside_extent(p, self.contact_margin_m)
@@ -194,8 +196,9 @@ class World:
                 best, best_tau = o, tau
         return best
 
-    def _choose(self, distances: dict[str, float], heading: SceneObject | None = None) -> SceneObject:
-        """Nearest object with hysteresis; an object the finger heads for twice running wins early."""
+    def _choose(self, distances: dict[str, float], heading: SceneObject | None = None, moving: bool = False) -> SceneObject:
+        """Nearest object with hysteresis; an object the finger heads for wins early and is kept while
+        the finger keeps moving (``moving``) even when a neighbour it passes is nearer."""
         best = min(self.scene.objects, key=lambda o: distances[o.name])
         cur = self.subject
         if cur is None:
@@ -204,10 +207,15 @@ class World:
             return cur  # never switch while touching the current subject
         prev, self._heading = self._heading, None if heading is None else heading.name
         if heading is not None and heading is not cur and (prev == heading.name or self.heading_confirm == 1):
-            return self._set_subject(heading)
+            self._set_subject(heading)
+            self._by_heading = True
+            return heading
         if heading is cur or best is cur:
             return cur
+        if self._by_heading and moving:
+            return cur  # a finger on its way to the object it headed for: a passing neighbour does not take over
         if distances[best.name] < distances[cur.name] - self.hysteresis_m:
+            self._by_heading = False
             return self._set_subject(best)
         return cur
 
@@ -248,16 +256,27 @@ class World:
         return c
 
     def _route(self, start: np.ndarray, X: np.ndarray, subj: SceneObject) -> np.ndarray:
-        """``X`` if the straight path from ``start`` is clear; else, for a target below the start, a way-point
-        at the start's level from which the way down is clear (off a raised object's edge); else a
-        way-point above the obstacles."""
-        if self._clear(start, X):
+        """``X`` if the straight path from ``start`` is clear; else a way-point. Leaving the top of an
+        object for a target off it, the device first lifts by ``path_margin_m`` (a fast sideways move
+        dips), then moves at that level until the way down to ``X`` is clear (off a raised object's edge,
+        not up into the finger's way); failing that, a way-point above all obstacles."""
+        m = self.path_margin_m
+        on = [o for o in self.scene.objects if o.inside_extent(start) and abs(o.height(start)) < m]
+        leaving = [o for o in on if not o.inside_extent(X)]
+        if not leaving and self._clear(start, X):
             return X
-        for u in (0.25, 0.5, 0.75, 1.0):  # first along the start's level towards X, then down to it
+        level = max([start[2]] + [o.project(start)[2] + m for o in on])
+        if leaving and start[2] < level - 0.5 * m:
+            lift = start.copy()
+            lift[2] = level
+            return lift
+        for u in (0.25, 0.5, 0.75, 1.0):
             via = start + (X - start) * u
-            via[2] = start[2]
+            via[2] = level
             if via[2] > X[2] and self._clear(start, via) and self._clear(via, X):
                 return via
+        if self._clear(start, X):
+            return X
         above = X.copy()
         above[2] = max(self.z_safe, X[2])
         if self._clear(start, above):
