@@ -70,3 +70,26 @@ def test_nearest_first_search_gives_the_full_search_result():
         fast = detect_fingertip(m, 4.8, prior_uv=prior)
         full = F.detect_fingertips(m, 4.8, prior_uv=prior, max_tips=2)[0]  # no shortcut with 2 tips
         assert fast.found and np.allclose(fast.uv_pixel, full.uv_pixel) and np.allclose(fast.uv, full.uv)
+
+
+def test_integral_image_prefilter_keeps_the_same_candidates(monkeypatch):
+    """Many candidates (a hand-sized blob and fingers): the S_square prefilter changes nothing."""
+    import cv2
+
+    import vishap.vision.fingertip as F
+
+    m = np.zeros((200, 240), np.uint8)
+    cv2.circle(m, (150, 120), 45, 255, -1)  # palm
+    for ang in (-2.6, -2.2, -1.8, 2.9):
+        c = np.array([150 + 95 * np.cos(ang), 120 + 95 * np.sin(ang)])
+        m |= capsule(c, ang + np.pi, 7.5, shape=m.shape, length=70)
+    calls = []
+    box_sum = F._box_sum
+    monkeypatch.setattr(F, "_box_sum", lambda *a: calls.append(1) or box_sum(*a))
+    cands = F.detect_fingertips(m, 4.5, max_tips=6)
+    assert calls  # the prefilter ran
+    monkeypatch.setattr(F, "_PREFILTER_MIN", 10 ** 9)
+    plain = F.detect_fingertips(m, 4.5, max_tips=6)
+    assert len(cands) == len(plain) >= 3
+    for a, b in zip(cands, plain):
+        assert np.array_equal(a.uv, b.uv) and a.cap_radius_px == b.cap_radius_px and a.score == b.score

@@ -132,3 +132,37 @@ def test_a_candidate_without_a_cap_fit_is_not_acquired(setup):
     pipe = VisionPipeline(rig, skin_model=skin)  # the default (see docs/vision.md)
     *_, why = pipe._match(tip(uvl, 0.0), tip(uvr, cap), full, 0.0)
     assert why == ""
+    # a recheck would replace a holding track: it always needs a cap circle
+    *_, why = pipe._match(tip(uvl, 0.0), tip(uvr, cap), {"left": "recheck", "right": "recheck"}, 0.0)
+    assert why == "no cap circle fits the candidate in the left view"
+
+
+def _track_run(rig, skin, cfg, frames=40):
+    scene = ToyScene(rig, seed=5)
+    pipe = VisionPipeline(rig, skin_model=skin, config=cfg)
+    out = []
+    for i in range(frames):
+        t = i / 30
+        f = scene.frame(t, _traj(i), hand=i >= 2)
+        out.append(pipe.process(StereoFrame(i, t, f.left, f.right)))
+    return out
+
+
+def _traj(k):
+    return np.array([-0.04 + 0.002 * k, 0.01 * np.sin(k / 6), 0.42 + 0.001 * k])
+
+
+def test_young_track_is_rechecked_every_3_frames_without_moving_a_good_track(setup):
+    """While the 3-D track is young the full frame is searched every 3 frames (a lock on a knuckle
+    is taken when a track starts), later every 15; a recheck that finds the tracked finger again
+    measures it as a tracked frame would, so a good track is not moved at all."""
+    rig, skin = setup
+    est = _track_run(rig, skin, PipelineConfig(learn_frames=2))
+    rechecks = [i for i, e in enumerate(est) if e.mode == "recheck"]
+    gaps = list(np.diff(rechecks))  # 3 (then 15) tracked frames between two rechecks
+    assert len(gaps) >= 3 and gaps[:2] == [4, 4] and gaps[-1] == 16, rechecks
+    plain = _track_run(rig, skin, PipelineConfig(learn_frames=2, recheck_young_frames=0, recheck_frames=0))
+    for e, p in zip(est, plain):
+        assert e.found == p.found
+        if e.found:
+            assert np.allclose(e.p_cam, p.p_cam, atol=1e-12, rtol=0)

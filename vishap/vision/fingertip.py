@@ -164,7 +164,7 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
                 break
         xs, ys, ring = cx, cy, cring
     else:
-        if xs.size > 256:  # many candidates (full frame): S_square of all from an integral image first
+        if xs.size > _PREFILTER_MIN:  # many candidates (full frame): S_square of all from an integral image first
             ii = cv2.integral(cv2.threshold(mask, 0, 1, cv2.THRESH_BINARY)[1])
             s_square = _box_sum(ii, xs, ys, r2) - _box_sum(ii, xs, ys, r2 - 1)
             keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2)
@@ -202,6 +202,9 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
             break
         alive &= (xs - xs[k]) ** 2 + (ys - ys[k]) ** 2 > (2 * r2) ** 2
     return tips
+
+
+_PREFILTER_MIN = 256  # candidates above which S_square comes from an integral image before the ring gather
 
 
 def _box_sum(ii: np.ndarray, xs: np.ndarray, ys: np.ndarray, h: int) -> np.ndarray:

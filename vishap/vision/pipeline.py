@@ -59,7 +59,6 @@ class PipelineConfig:
     acquire_needs_cap_fit: bool = False  # a candidate must have a fitted cap circle to acquire over the full frame
     #   (the paper's test alone passes a straight skin edge: the back of the hand); off by default: see
     #   docs/vision.md. A recheck always needs one: it would replace a holding track
-    require_cap_fit: bool = False   # … also in tracked mode
     track_max_age_s: float = 0.5    # a 3-D fix older than this no longer gates (the finger may be anywhere)
     confirm_within_s: float = 0.1   # a fix that starts a new 3-D track must be confirmed this soon
     confirm_new_tracks: bool = False  # hold back a fix that starts a new 3-D track until the next frame agrees
@@ -246,8 +245,9 @@ class VisionPipeline:
         on_track = all(modes[s] == "tracked" or id(tp) in self._window_tips for s, tp in (("left", tl), ("right", tr)))
         lo, hi = (0.5, 1.6) if on_track else cfg.acquire_radius_band
         for side, tip in (("left", tl), ("right", tr)):
-            if tip.cap_radius_px <= 0 and (cfg.require_cap_fit or (modes[side] == "recheck" and id(tip) not in self._window_tips)
-                                           or (cfg.acquire_needs_cap_fit and modes[side] == "full")):
+            needs_cap = (modes[side] == "recheck" and id(tip) not in self._window_tips) \
+                or (cfg.acquire_needs_cap_fit and modes[side] == "full")
+            if tip.cap_radius_px <= 0 and needs_cap:
                 return tl, tr, sp, f"no cap circle fits the candidate in the {side} view"
             q = tip.cap_radius_px / self._px_per_m(side, sp.p_cam) / cfg.finger_radius_m
             if tip.cap_radius_px > 0 and not (lo <= q <= hi):
