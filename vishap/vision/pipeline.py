@@ -222,10 +222,11 @@ class VisionPipeline:
 
         The pair must pass the epipolar and disparity checks, and each fitted cap radius, scaled by
         its depth, must be within ``acquire_radius_band`` of ``finger_radius_m`` (0.5–1.6 when both
-        views are tracked). A cap much smaller than the other view's (``occluded_cap_ratio``) is
-        (or a pair off the epipolar line by less than a cap radius) may be partly hidden in one
-        view — in an encountered-type system the device stands where the finger is going and its
-        arm often crosses the tip in one view — and is checked by :meth:`_occluded_pair` first.
+        views are tracked). A pair whose caps differ in radius (below ``occluded_cap_ratio``), or
+        that misses the epipolar line by less than a cap radius, may be partly hidden in one view —
+        in an encountered-type system the device stands where the finger is going and its arm often
+        crosses the tip in one view — and is checked by :meth:`_occluded_pair` first. A recheck
+        (which would replace a holding track) needs a fitted cap circle.
         """
         cfg = self.config
         cl, cr = tl.cap_radius_px, tr.cap_radius_px
@@ -260,9 +261,9 @@ class VisionPipeline:
 
         The other (reference) view must be tracked without a miss and show a cap of a fingertip's
         size; of two such views the one nearer its track's prediction (Mahalanobis) is the reference.
-        Too little of the cap shows when the two fitted radii differ by more than
-        ``occluded_min_cap_ratio``. The cut cap's centre is off by up to a cap radius (a cut fits a smaller
-        or a flatter, larger circle); its row is replaced by the other view's rectified row (the
+        Too little of the cap shows when the smaller fitted radius is below
+        ``occluded_min_cap_ratio`` of the larger. The cut cap's centre is off by up to a cap radius
+        (a cut fits a smaller or a flatter, larger circle); its row is replaced by the other view's rectified row (the
         tip lies on that epipolar line) and only its column (the disparity) is used. The 3-D
         point must be within reach of the 3-D track, and the pixel noise of the triangulation is
         raised by the row offset (covariance). The corrected tip is the 3-D point projected into
@@ -322,7 +323,8 @@ class VisionPipeline:
     def _confirmed(self, p_cam, t: float) -> bool:
         """Report ``p_cam``? Yes when it continues the 3-D track; a point that starts a track (first
         fix, a jump out of reach, a fix after ``track_max_age_s``) is held back until a frame within
-        ``confirm_within_s`` confirms it within reach — a one-frame false match would send the device to a wrong target."""
+        ``confirm_within_s`` confirms it within reach: a one-frame false match would send the device
+        to a wrong target."""
         if not self.config.confirm_new_tracks or self._within_reach(p_cam, t):
             return True
         ok = self._pending is not None and self._within_reach(p_cam, t, self._pending, self.config.confirm_within_s)
@@ -355,14 +357,12 @@ class VisionPipeline:
             return tips
         w = found[0]
         w.uv = w.uv + wr[:2]
-        out = []
-        for tp in tips:
-            if np.hypot(*(tp.uv - w.uv)) <= cfg.recheck_jump_px:
-                w.extremity_px = tp.extremity_px
-                self._window_tips.add(id(w))
-                tp = w
-            out.append(tp)
-        return out
+        k = int(np.argmin([np.hypot(*(tp.uv - w.uv)) for tp in tips]))
+        if np.hypot(*(tips[k].uv - w.uv)) > cfg.recheck_jump_px:
+            return tips
+        w.extremity_px = tips[k].extremity_px  # keeps the full-frame ranking
+        self._window_tips.add(id(w))
+        return tips[:k] + [w] + tips[k + 1:]
 
     def _detect(self, side: str, image: np.ndarray, t: float, timings: dict):
         cfg = self.config
