@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from vishap._core.motion import min_jerk
+
 __all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "MeetingPoint", "PathExtrapolator", "ReachFit", "make_predictor", "contact_point", "PREDICTORS"]
 
 
@@ -257,19 +259,8 @@ def contact_point(p_robot, v_robot, normal, offset_m: float, *, horizon_s: float
     return q - n * (float(n @ q) - offset_m), tau
 
 
-def _min_jerk(s):
-    s = np.clip(s, 0.0, 1.0, out=s)
-    m = 6.0 * s - 15.0
-    m *= s
-    m += 10.0
-    m *= s
-    m *= s
-    m *= s
-    return m
-
-
 _TAU_TABLE = np.linspace(0.0, 1.0, 1001)
-_M_TABLE = _min_jerk(_TAU_TABLE.copy())
+_M_TABLE = min_jerk(_TAU_TABLE)
 
 
 class ReachFit:
@@ -328,7 +319,7 @@ class ReachFit:
         t0 = np.arange(t_last - self.window_s - 0.5, t_last + 1e-9, self.t0_step)
         T0, TT = np.meshgrid(t0, self.T, indexing="ij")
         T0, TT = T0.ravel(), TT.ravel()
-        m = _min_jerk((ts[None, :] - T0[:, None]) / TT[:, None])  # (K, N)
+        m = min_jerk((ts[None, :] - T0[:, None]) / TT[:, None])  # (K, N)
         w = self.w
         # Each fit is a regularised least-squares problem A x = b; its minimum is c − x·b (no residuals
         # formed). Height: h = hS (1 − m) + hE m, prior hE ~ N(−end_depth, end_std²).
