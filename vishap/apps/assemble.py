@@ -128,7 +128,7 @@ def make_world(cfg: DemoConfig, scene, rig, T_est):
     pred = need("vishap.world.predictor", "world (predictor)")
     noise = cfg.finger_noise_m or (0.005 if T_est is None else stereo_noise_m(rig, T_est, scene.objects[0].centre))
     return world_mod.World(scene, predictor=pred.KalmanPredictor(meas_std_m=noise),
-                           latency_s=cfg.vision_latency_s + 0.5 / cfg.scene_hz)
+                           latency_s=cfg.vision_latency_s + 0.5 / cfg.scene_hz, contact_model=cfg.contact_model)
 
 
 def stereo_noise_m(rig, T_robot_cam, p_robot) -> float:

@@ -58,6 +58,9 @@ class DemoConfig(Schema):
     travel_speed_m_s: float | None = Field(
         default=DEFAULT_SPEED_M_S, gt=0.0, le=5.0, description="device target: speed limit of its travel (robot TravelLimiter); None: unlimited")
     travel_accel_m_s2: float = Field(default=DEFAULT_ACCEL_M_S2, gt=0.0, le=1000.0, description="device target: acceleration limit of its travel")
+    contact_model: Literal["ray", "path", "both", "reach", "all"] = Field(
+        default="both", description="the world's meeting-point prediction (vishap.world.World contact_model); "
+        "'both' (ray + path) met the finger more often than the world's default 'all' with real vision in the loop (docs/demos.md)")
     finger_noise_m: float | None = Field(
         default=None, gt=0.0, description="fingertip noise σ the world's Kalman predictor assumes; None: from the "
                                           "stereo model (vision's pixel σ) at the object's distance")

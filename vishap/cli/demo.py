@@ -55,6 +55,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"inject a fault in [T0, T1) s; KIND one of {', '.join(FAULT_KINDS)} (repeatable)")
     p.add_argument("--travel", type=parse_travel, default={}, metavar="SPEED,ACCEL",
                    help="device travel limits in m/s and m/s² (default 0.6,40; docs/robot.md); 'off' for none")
+    p.add_argument("--contact-model", default=None, choices=("ray", "path", "both", "reach", "all"),
+                   help="the world's meeting-point prediction (default: the demo configuration's)")
     p.add_argument("--no-video", action="store_true", help="skip the MP4 (faster)")
     p.add_argument("--no-frames", action="store_true",
                    help="do not keep the lossless frames (≈ 0.3 MB per pair at 480x360; replay needs them)")
@@ -83,6 +85,8 @@ def _run(args: argparse.Namespace) -> int:
         if args.frames is not None:
             fields["frames"] = args.frames
         fields.update(args.travel)
+        if args.contact_model is not None:
+            fields["contact_model"] = args.contact_model
         cfg = validate(DemoConfig, fields, file=None)
         summary = run_demo(cfg, args.out, progress=True)
     print(json.dumps(summary))
