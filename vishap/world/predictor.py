@@ -177,7 +177,21 @@ class MeetingPoint:
         return self.c.copy()
 
 
-class PathExtrapolator:
+class _SampleWindow:
+    """The finger samples ``(t, p_robot)`` of the last ``window_s`` seconds (None samples are skipped)."""
+
+    window_s: float
+    samples: list
+
+    def observe(self, t: float, p_robot) -> None:
+        if p_robot is None:
+            return
+        self.samples.append((float(t), np.asarray(p_robot, dtype=float).copy()))
+        while self.samples and self.samples[0][0] < t - self.window_s:
+            self.samples.pop(0)
+
+
+class PathExtrapolator(_SampleWindow):
     """Where the finger's *path* meets a surface: the recent raw samples' tangential coordinates
     fitted as a quadratic in their height above the surface and evaluated at height 0. Its variance
     is the measurement noise through the fit's leverage plus ``(model_error · h)²`` for the height
@@ -198,13 +212,6 @@ class PathExtrapolator:
 
     def reset(self) -> None:
         self.samples: list[tuple[float, np.ndarray]] = []
-
-    def observe(self, t: float, p_robot) -> None:
-        if p_robot is None:
-            return
-        self.samples.append((float(t), np.asarray(p_robot, dtype=float).copy()))
-        while self.samples and self.samples[0][0] < t - self.window_s:
-            self.samples.pop(0)
 
     def contact(self, centre, R_robot_obj) -> tuple[np.ndarray, float] | None:
         if len(self.samples) < 4:
@@ -263,7 +270,7 @@ _TAU_TABLE = np.linspace(0.0, 1.0, 1001)
 _M_TABLE = min_jerk(_TAU_TABLE)
 
 
-class ReachFit:
+class ReachFit(_SampleWindow):
     """Where a reaching finger will touch a surface: a minimum-jerk reach (Flash & Hogan) fitted to
     the recent raw samples, in the surface's frame.
 
@@ -296,13 +303,6 @@ class ReachFit:
     def reset(self) -> None:
         self.samples: list[tuple[float, np.ndarray]] = []
         self.t_touch: float | None = None
-
-    def observe(self, t: float, p_robot) -> None:
-        if p_robot is None:
-            return
-        self.samples.append((float(t), np.asarray(p_robot, dtype=float).copy()))
-        while self.samples and self.samples[0][0] < t - self.window_s:
-            self.samples.pop(0)
 
     def contact(self, centre, R_robot_obj) -> tuple[np.ndarray, float] | None:
         """(touch point on the surface plane (robot frame), variance m²) or None; sets ``t_touch``."""
