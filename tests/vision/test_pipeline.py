@@ -63,3 +63,48 @@ def test_bad_frames_give_clear_errors(setup):
         pipe.process(StereoFrame(0, 0.0, np.zeros((10, 10, 3), np.uint8), np.zeros((240, 320, 3), np.uint8)))
     with pytest.raises(ShapeError, match="right image: expected uint8"):
         pipe.process(StereoFrame(0, 0.0, np.zeros((240, 320, 3), np.uint8), np.zeros((240, 320), np.uint8)))
+
+
+def _finger_only_left(img, tip_uv, r_px):
+    """A second skin-coloured finger (a distractor) drawn in one view only: its tip is a fingertip
+    candidate there but has no partner on the other view's epipolar line."""
+    from vishap.vision.toy import SKIN_BGR
+    import cv2
+    end = (int(tip_uv[0]), int(tip_uv[1]))
+    cv2.line(img, end, (end[0] + 60, end[1] - 60), SKIN_BGR, thickness=int(round(2 * r_px)), lineType=cv2.LINE_AA)
+    return img
+
+
+def _run_wrong_lock(rig, skin, **cfg):
+    """Track the toy finger, then move the left view's track onto a distractor finger drawn only in
+    the left view; returns the estimates of the following frames and the true tips."""
+    scene = ToyScene(rig, seed=5)
+    pipe = VisionPipeline(rig, skin_model=skin, config=PipelineConfig(learn_frames=4, recheck_frames=0, **cfg))
+    out = []
+    p = np.array([0.03, 0.01, 0.45])
+    r_px = rig.K_left[0, 0] * 0.008 / p[2]
+    decoy = np.array([60.0, 170.0])
+    for i in range(24):
+        f = scene.frame(i / 30, p, hand=i >= 4)
+        left = _finger_only_left(f.left.copy(), decoy, r_px) if i >= 4 else f.left
+        if i == 16:  # a wrong lock in the left view (as after an occlusion): the window holds the decoy
+            assert out[-1][0].found and pipe.trackers["left"].tracking
+            pipe.trackers["left"].kf.reset(decoy)
+        est = pipe.process(StereoFrame(i, i / 30, left, f.right))
+        out.append((est, f))
+    return out[16:]
+
+
+def test_no_pair_in_tracked_mode_searches_the_full_frame_at_once(setup):
+    """Both views tracked, the left window on a wrong finger, the right on the tip: no consistent pair;
+    the left view is searched over the full frame in the same frame and the tip is found again."""
+    rig, skin = setup
+    res = _run_wrong_lock(rig, skin)
+    for est, f in res:
+        assert est.found, est.reason
+        assert np.hypot(*(est.uv_left - f.tip_uv_left)) < 1.0
+        assert np.linalg.norm(est.p_cam - f.tip_cam) < 0.004
+    # without it (and with the periodic recheck off) the left view stays on the decoy
+    res = _run_wrong_lock(rig, skin, recheck_on_reject=False)
+    assert not any(est.found for est, _ in res)
+    assert all(np.hypot(*(est.uv_left - f.tip_uv_left)) > 20 for est, f in res if est.uv_left is not None)

@@ -52,6 +52,8 @@ class PipelineConfig:
     full_search_on_miss: bool = True  # a miss in the window triggers a full-frame search of that view
     max_speed_m_s: float = 2.0      # gate of that search: how far the finger may have moved since its last hit
     recheck_jump_px: float = 12.0   # a recheck result this far from the track restarts the track there
+    recheck_on_reject: bool = True  # no consistent pair with a view in tracked mode: search that view's full
+    #   frame at once (its window may hold a wrong finger; see docs/vision.md)
     occluded_pairs: bool = True     # check pairs that may be cut by the device in one view as such (_occluded_pair)
     occluded_cap_ratio: float = 0.85  # a cap below this fraction of the other view's is taken as partly hidden
     occluded_min_cap_ratio: float = 0.6  # … and below this, too little of it shows to give a disparity
@@ -152,6 +154,13 @@ class VisionPipeline:
             cands[side], modes[side] = self._detect(side, img, t, timings)
         t1 = time.perf_counter()
         found, sp = self._choose_pair(cands, modes, t)
+        stuck = [s for s in ("left", "right") if modes[s] == "tracked"]
+        if not sp.ok and self.config.recheck_on_reject and stuck and cands["left"] and cands["right"]:
+            # candidates in both views but no consistent pair: a tracked window may hold a wrong
+            # finger while the other view sees the tip; search the tracked view(s) over the full frame
+            for side in stuck:
+                cands[side], modes[side] = self._detect(side, getattr(frame, side), t, timings, recheck=True)
+            found, sp = self._choose_pair(cands, modes, t)
         for side in ("left", "right"):
             trk = self.trackers[side]
             if found[side] is not None and modes[side] == "recheck" and trk.tracking \
@@ -364,7 +373,9 @@ class VisionPipeline:
         self._window_tips.add(id(w))
         return tips[:k] + [w] + tips[k + 1:]
 
-    def _detect(self, side: str, image: np.ndarray, t: float, timings: dict):
+    def _detect(self, side: str, image: np.ndarray, t: float, timings: dict, recheck: bool = False):
+        """Candidates of one view and the mode ("full", "tracked" or "recheck"); ``recheck`` forces a
+        full-frame search of a tracked view (its window measurement kept, see _keep_track_measurement)."""
         cfg = self.config
         trk = self.trackers[side]
         seg = self.segmenters[side]
@@ -378,7 +389,7 @@ class VisionPipeline:
         young = self._fix_run < cfg.recheck_frames and cfg.recheck_young_frames
         period = cfg.recheck_young_frames if young else cfg.recheck_frames
         window = None
-        if roi is not None and period and self._since_full >= period:
+        if roi is not None and (recheck or (period and self._since_full >= period)):
             window, roi, mode = roi, None, "recheck"  # a periodic full-frame search: escape a lock on the wrong finger
         if roi is None:
             roi = (0, 0, self._size[0], self._size[1])
@@ -413,8 +424,8 @@ class VisionPipeline:
             if tips:
                 roi, mode = full, "recheck"
         te = time.perf_counter()
-        timings[f"segment_{side}_ms"] = (td - ts) * 1e3
-        timings[f"detect_{side}_ms"] = (te - td) * 1e3
+        timings[f"segment_{side}_ms"] = timings.get(f"segment_{side}_ms", 0.0) + (td - ts) * 1e3
+        timings[f"detect_{side}_ms"] = timings.get(f"detect_{side}_ms", 0.0) + (te - td) * 1e3
         if cfg.colour_refine and tips:
             x0, y0, x1, y1 = roi
             img_roi, bg_roi = image[y0:y1, x0:x1], seg.mean_image[y0:y1, x0:x1]
