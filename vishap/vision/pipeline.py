@@ -57,6 +57,8 @@ class PipelineConfig:
     occluded_pairs: bool = True     # check pairs that may be cut by the device in one view as such (_occluded_pair)
     occluded_cap_ratio: float = 0.85  # a cap below this fraction of the other view's is taken as partly hidden
     occluded_min_cap_ratio: float = 0.6  # … and below this, too little of it shows to give a disparity
+    occluded_track_held: bool = True  # … the 3-D track's age limit does not apply there while the
+    #   reference view's 2-D track has held since the last 3-D fix (the finger hidden in one view only)
     reach_margin_m: float = 0.02    # 3-D gate: distance the finger may be from the last fix beyond max_speed_m_s·dt
     acquire_needs_cap_fit: bool = False  # a candidate must have a fitted cap circle to acquire over the full frame
     #   (the paper's test alone passes a straight skin edge: the back of the hand); off by default: see
@@ -165,8 +167,7 @@ class VisionPipeline:
             trk = self.trackers[side]
             if found[side] is not None and modes[side] == "recheck" and trk.tracking \
                     and np.hypot(*(found[side] - trk.kf.position)) > self.config.recheck_jump_px:
-                trk.kf.reset(found[side])  # the full-frame search found a better-ranked tip: move there
-                trk.t = t
+                trk.restart(t, found[side])  # the full-frame search found a better-ranked tip: move there
             else:
                 trk.update(t, found[side])
         self._since_full = 0 if "tracked" not in modes.values() else self._since_full + 1
@@ -305,7 +306,8 @@ class VisionPipeline:
         sp = triangulate_rectified_tip(self.rig, rect["left"], rect["right"], stereo)
         if not sp.ok:
             return sp, None, occ
-        if not self._within_reach(sp.p_cam, t):
+        held = cfg.occluded_track_held and self.trackers[other].held_since(self._t3)
+        if not self._within_reach(sp.p_cam, t, max_age_s=np.inf if held else None):
             return StereoPoint(False, reason=f"cap partly hidden in the {occ} view and its 3-D point out of "
                                              f"reach of the 3-D track"), None, occ
         uv_l, uv_r = self.rig.project(sp.p_cam[None])

@@ -135,6 +135,7 @@ class TipTracker:
         self.kf = KalmanCV(2, q=config.q_px, r=config.r_px)
         self.t: float | None = None
         self.t_hit: float | None = None  # time of the last detection
+        self.t_start: float | None = None  # time the current track began (a reset starts a new one)
 
     @property
     def tracking(self) -> bool:
@@ -171,17 +172,25 @@ class TipTracker:
             return None
         return x0, y0, x1, y1
 
+    def restart(self, t: float, uv) -> None:
+        """Start a new track at ``uv`` (time ``t``)."""
+        self.kf.reset(uv)
+        self.t = self.t_hit = self.t_start = t
+
+    def held_since(self, t: float) -> bool:
+        """Has the current track held, without a restart, since time ``t``?"""
+        return self.tracking and self.t_start is not None and self.t_start <= t
+
     def update(self, t: float, uv) -> None:
         """Feed a detection (or None for a miss) at time ``t``."""
         if uv is None:
             if self.kf.initialized:
                 self.kf.update(None)
             return
-        self.t_hit = t
         if not self.tracking:
-            self.kf.reset(uv)
-            self.t = t
+            self.restart(t, uv)
             return
+        self.t_hit = t
         if self.t is None:
             self.t = t
         self.kf.update(uv)
