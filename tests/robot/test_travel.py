@@ -73,3 +73,26 @@ def test_the_servo_with_travel_limits_moves_the_arm_without_saturating():
     assert results["free"][2] > 0 and results["limited"][2] == 0
     assert results["limited"][0] < 0.5 * results["free"][0]
     assert results["limited"][1] is not None and results["limited"][1] < 0.2
+
+
+def test_hot_motors_slow_the_travel_instead_of_spending_the_contact_budget():
+    """With the heating estimate near the continuous limit the acceleration limit shrinks (to 10 %
+    at the least): the same move needs a fraction of the force and still arrives."""
+    out = {}
+    for name, heat in (("cold", 0.0), ("hot", 1.9)):
+        servo = build_servo(policy="hold", travel=TravelLimiter(0.6, 40.0))
+        ctrl = servo.controller
+        for k in range(700):
+            servo.tick(k * 1e-3)
+        ctrl.heat = heat
+        assert ctrl.thermal_headroom == pytest.approx(1.0 - heat / 1.4**2)
+        goal = np.array(ctrl.p) + np.array([0.0, 0.02, 0.0])
+        peak, t_in = 0.0, None
+        for k in range(700, 1700):
+            servo.tick(k * 1e-3, goal)
+            peak = max(peak, float(np.linalg.norm(ctrl.F_pd)))
+            if t_in is None and np.linalg.norm(np.array(ctrl.p) - goal) < 1e-3:
+                t_in = (k - 700) * 1e-3
+        out[name] = (peak, t_in)
+    assert out["hot"][0] < 0.4 * out["cold"][0]
+    assert out["cold"][1] < out["hot"][1] < 0.6

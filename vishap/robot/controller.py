@@ -119,6 +119,13 @@ class Controller:
         self._L_identity = bool(np.array_equal(L, np.eye(3)))
         return L
 
+    @property
+    def thermal_headroom(self) -> float:
+        """1 with cold motors … 0 when the heating estimate reaches the continuous force squared (from
+        there the force is held to the continuous limit)."""
+        c2 = self._cont * self._cont
+        return max(0.0, 1.0 - self.heat / c2) if c2 > 0.0 else 0.0
+
     def reset(self, t_start: float | None = None) -> None:
         """Forget filter state and restart the force ramp (at the next tick, or at ``t_start``)."""
         self.ef = (0.0, 0.0, 0.0)

@@ -187,8 +187,8 @@ class ServoLoop:
                 F = self.force_callback(t, np.array((px, py, pz)), np.array((vx, vy, vz)))
                 if F is not None:
                     extra_force_robot = F if extra_force_robot is None else np.asarray(F) + np.asarray(extra_force_robot)
-        if travel is not None:
-            tg = travel.step(t, *tg)
+        if travel is not None:  # travel spends force only while the motors have heat budget left
+            tg = travel.step(t, *tg, self.controller.thermal_headroom)
         if extra_force_robot is None:
             tau = self._compute(t, q1, q2, q3, w1, w2, w3, *tg)
         else:

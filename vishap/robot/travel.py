@@ -22,6 +22,8 @@ __all__ = ["TravelLimiter", "DEFAULT_SPEED_M_S", "DEFAULT_ACCEL_M_S2"]
 #: meeting as fast as without limits.
 DEFAULT_SPEED_M_S = 0.6
 DEFAULT_ACCEL_M_S2 = 40.0
+#: the smallest fraction of the acceleration limit left when the motors are hot
+MIN_SCALE = 0.1
 
 BRAKE = 0.8  # braking curve at 80 % of the acceleration limit: the margin a 1 ms step needs to stop on the target
 
@@ -29,15 +31,19 @@ BRAKE = 0.8  # braking curve at 80 % of the acceleration limit: the margin a 1 m
 class TravelLimiter:
     """Follow (x, v) targets with bounded speed and acceleration; scalar arithmetic for the 1 kHz loop."""
 
-    __slots__ = ("max_speed", "max_accel", "settle_gain", "_x", "_v", "_t", "ready")
+    __slots__ = ("max_speed", "max_accel", "settle_gain", "min_scale", "_x", "_v", "_t", "ready")
 
-    def __init__(self, max_speed_m_s: float = DEFAULT_SPEED_M_S, max_accel_m_s2: float = DEFAULT_ACCEL_M_S2, *, settle_gain_hz: float = 100.0):
+    def __init__(self, max_speed_m_s: float = DEFAULT_SPEED_M_S, max_accel_m_s2: float = DEFAULT_ACCEL_M_S2, *,
+                 settle_gain_hz: float = 100.0, min_scale: float = MIN_SCALE):
         for name, v in (("max_speed_m_s", max_speed_m_s), ("max_accel_m_s2", max_accel_m_s2), ("settle_gain_hz", settle_gain_hz)):
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"must be a finite number > 0, got {v!r}", field=f"travel.{name}")
         self.max_speed = float(max_speed_m_s)
         self.max_accel = float(max_accel_m_s2)
         self.settle_gain = float(settle_gain_hz)  # 1/s: the closing speed's slope near the target
+        if not 0.0 < min_scale <= 1.0:
+            raise ConfigError(f"must be in (0, 1], got {min_scale!r}", field="travel.min_scale")
+        self.min_scale = float(min_scale)
         self._x = (0.0, 0.0, 0.0)
         self._v = (0.0, 0.0, 0.0)
         self._t = None
@@ -50,8 +56,12 @@ class TravelLimiter:
         self._t = None
         self.ready = True
 
-    def step(self, t: float, x: float, y: float, z: float, vx: float, vy: float, vz: float):
-        """The limited target ``(x, y, z, vx, vy, vz)`` at time ``t`` toward the shaped one."""
+    def step(self, t: float, x: float, y: float, z: float, vx: float, vy: float, vz: float, scale: float = 1.0):
+        """The limited target ``(x, y, z, vx, vy, vz)`` at time ``t`` toward the shaped one.
+
+        ``scale`` (0…1) scales the acceleration limit: the servo passes the motors' thermal headroom,
+        so travel spends force only while there is heat budget left for rendering contact (never below
+        ``min_scale``: the device still gets where it must, more slowly)."""
         if not self.ready:
             self.reset(x, y, z, vx, vy, vz)
         dt = 0.0 if self._t is None else t - self._t
@@ -63,7 +73,7 @@ class TravelLimiter:
         cx, cy, cz = cx + ux * dt, cy + uy * dt, cz + uz * dt  # advance to now, then steer
         ex, ey, ez = x - cx, y - cy, z - cz
         d = math.sqrt(ex * ex + ey * ey + ez * ez)
-        a = self.max_accel
+        a = self.max_accel * min(1.0, max(scale, self.min_scale))
         # closing speed: linear near the target, the braking curve further out, capped
         s = min(self.max_speed, math.sqrt(2.0 * BRAKE * a * d), self.settle_gain * d)
         s = s / d if d > 1e-12 else 0.0
