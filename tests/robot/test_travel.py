@@ -52,47 +52,41 @@ def test_bad_limits_are_refused_with_the_field_named():
         TravelLimiter(math.nan, 10.0)
 
 
+def _move(travel, dy: float, *, heat: float = 0.0, ticks: int = 600):
+    """Settle the arm (past the 0.5 s force ramp-up), set the heating estimate, jump the target by
+    ``dy`` along y; (peak |F_pd|, time to within 1 mm or None, ticks clipped at the peak)."""
+    servo = build_servo(policy="hold", travel=travel)
+    ctrl = servo.controller
+    for k in range(700):
+        servo.tick(k * 1e-3)
+    ctrl.heat = heat
+    goal = np.array(ctrl.p) + np.array([0.0, dy, 0.0])
+    peak, t_in = 0.0, None
+    for k in range(700, 700 + ticks):
+        servo.tick(k * 1e-3, goal)
+        peak = max(peak, float(np.linalg.norm(ctrl.F_pd)))
+        if t_in is None and np.linalg.norm(np.array(ctrl.p) - goal) < 1e-3:
+            t_in = (k - 700) * 1e-3
+    return peak, t_in, ctrl.n_saturated
+
+
 def test_the_servo_with_travel_limits_moves_the_arm_without_saturating():
     """A 25 mm target jump: unlimited, the PD asks for more than the peak force and clips; limited,
     the arm gets there with a fraction of it and arrives within the limits' time."""
-    results = {}
-    for name, travel in (("free", None), ("limited", TravelLimiter(0.6, 20.0))):
-        servo = build_servo(policy="hold", travel=travel)
-        ctrl = servo.controller
-        for k in range(700):  # settle where the arm starts (past the 0.5 s force ramp-up)
-            servo.tick(k * 1e-3)
-        p0 = np.array(ctrl.p)
-        goal = p0 + np.array([0.0, 0.025, 0.0])
-        peak, t_in = 0.0, None
-        for k in range(700, 1300):
-            servo.tick(k * 1e-3, goal)
-            peak = max(peak, float(np.linalg.norm(ctrl.F_pd)))
-            if t_in is None and np.linalg.norm(np.array(ctrl.p) - goal) < 1e-3:
-                t_in = (k - 700) * 1e-3
-        results[name] = (peak, t_in, ctrl.n_saturated)
-    assert results["free"][2] > 0 and results["limited"][2] == 0
-    assert results["limited"][0] < 0.5 * results["free"][0]
-    assert results["limited"][1] is not None and results["limited"][1] < 0.2
+    free = _move(None, 0.025)
+    limited = _move(TravelLimiter(0.6, 20.0), 0.025)
+    assert free[2] > 0 and limited[2] == 0
+    assert limited[0] < 0.5 * free[0]
+    assert limited[1] is not None and limited[1] < 0.2
 
 
 def test_hot_motors_slow_the_travel_instead_of_spending_the_contact_budget():
     """With the heating estimate near the continuous limit the acceleration limit shrinks (to 10 %
     at the least): the same move needs a fraction of the force and still arrives."""
-    out = {}
-    for name, heat in (("cold", 0.0), ("hot", 1.9)):
-        servo = build_servo(policy="hold", travel=TravelLimiter(0.6, 40.0))
-        ctrl = servo.controller
-        for k in range(700):
-            servo.tick(k * 1e-3)
-        ctrl.heat = heat
-        assert ctrl.thermal_headroom == pytest.approx(1.0 - heat / 1.4**2)
-        goal = np.array(ctrl.p) + np.array([0.0, 0.02, 0.0])
-        peak, t_in = 0.0, None
-        for k in range(700, 1700):
-            servo.tick(k * 1e-3, goal)
-            peak = max(peak, float(np.linalg.norm(ctrl.F_pd)))
-            if t_in is None and np.linalg.norm(np.array(ctrl.p) - goal) < 1e-3:
-                t_in = (k - 700) * 1e-3
-        out[name] = (peak, t_in)
-    assert out["hot"][0] < 0.4 * out["cold"][0]
-    assert out["cold"][1] < out["hot"][1] < 0.6
+    servo = build_servo()
+    servo.controller.heat = 1.9
+    assert servo.controller.thermal_headroom == pytest.approx(1.0 - 1.9 / 1.4**2)
+    cold = _move(TravelLimiter(0.6, 40.0), 0.02, ticks=1000)
+    hot = _move(TravelLimiter(0.6, 40.0), 0.02, heat=1.9, ticks=1000)
+    assert hot[0] < 0.4 * cold[0]
+    assert cold[1] < hot[1] < 0.6
