@@ -90,3 +90,17 @@ def test_hot_motors_slow_the_travel_instead_of_spending_the_contact_budget():
     hot = _move(TravelLimiter(0.6, 40.0), 0.02, heat=1.9, ticks=1000)
     assert hot[0] < 0.4 * cold[0]
     assert cold[1] < hot[1] < 0.6
+
+
+def test_a_nan_target_does_not_poison_the_limiter():
+    """The controller rejects a NaN target for that tick; the next finite target is followed as without limits."""
+    servo = build_servo(travel=TravelLimiter())
+    ctrl = servo.controller
+    for k in range(700):
+        servo.tick(k * 1e-3)
+    goal = np.array(ctrl.p) + np.array([0.0, 0.01, 0.0])
+    servo.tick(0.7, [math.nan] * 3)
+    for k in range(701, 1300):
+        servo.tick(k * 1e-3, goal)
+    assert ctrl.n_rejected == 1
+    assert np.linalg.norm(np.array(ctrl.p) - goal) < 1e-4

@@ -61,7 +61,10 @@ class TravelLimiter:
 
         ``scale`` (0…1) scales the acceleration limit: the servo passes the motors' thermal headroom,
         so travel spends force only while there is heat budget left for rendering contact (never below
-        ``min_scale``: the device still gets where it must, more slowly)."""
+        ``min_scale``: the device still gets where it must, more slowly). A non-finite target is
+        passed on untouched for the controller to reject; the limiter's own state stays finite."""
+        if not math.isfinite(x + y + z + vx + vy + vz):
+            return x, y, z, vx, vy, vz
         if not self.ready:
             self.reset(x, y, z, vx, vy, vz)
         dt = 0.0 if self._t is None else t - self._t
