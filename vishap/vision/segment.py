@@ -265,6 +265,7 @@ class Segmenter:
         fg[sel] = histogram_intersection(hist.reshape(-1, nb), M) < c.match_threshold
         return fg.reshape(ty, tx)
 
+
 def binary_median(mask: np.ndarray, k: int) -> np.ndarray:
     """``cv2.medianBlur(mask, k)`` of a 0/255 mask, as a majority count: a pixel is skin when at
     least ``(k² + 1) / 2`` of its k×k neighbours are (replicated border, as medianBlur). The same
