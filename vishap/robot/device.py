@@ -1,14 +1,22 @@
 """The haptic-device interface (VisHap §2.1 "haptic device"; CHAI3D's generic device as a model).
 
 A :class:`Device` reads joint state and accepts motor torques or a tip force; the MuJoCo plant
-(:class:`vishap.robot.plant.MujocoPlant`) implements it and a real PHANToM driver would implement
-the same methods. :class:`DeviceLimits` is the record of what the hardware can do (peak and
-continuous force, workspace, joint limits, the stiffness the servo can render stably).
+(:class:`vishap.robot.plant.MujocoPlant`, the driver ``sim``) implements it and so does every driver
+found by :func:`vishap.robot.drivers.open_device` (docs/devices.md). :class:`DeviceLimits` is the
+record of what the hardware can do (peak and continuous force, workspace, joint limits, the
+stiffness the servo can render stably), reported once the device is open.
+
+The life cycle follows the haptics SDKs (OpenHaptics HDAPI: ``hdInitDevice`` → ``hdEnable
+(HD_FORCE_OUTPUT)`` + ``hdStartScheduler`` → frames → ``hdStopScheduler`` + ``hdDisableDevice``;
+Force Dimension: ``dhdOpen`` → ``dhdEnableForce`` → ``dhdClose``): constructing a device opens it
+and reads its limits, :meth:`Device.start` enables force output, :meth:`Device.stop` lets go (zero
+force, forces disabled) and :meth:`Device.close` stops and releases it. All quantities are SI in the
+robot frame; an adapter converts from its SDK's units and frame.
 
 Besides the array methods, a device offers float fast paths (:meth:`Device.read_scalar`,
 :meth:`Device.command_torque_scalar`) used by the 1 kHz servo loop; their defaults fall back on the
-array methods, so a new driver only has to implement :meth:`read`, :meth:`command_torque` and
-:meth:`step`.
+array methods, so a new driver only has to implement :meth:`read`, :meth:`command_torque`,
+:meth:`step` and :attr:`time` (and :meth:`stop` / :meth:`close` when it holds hardware).
 """
 from __future__ import annotations
 
@@ -40,6 +48,10 @@ class DeviceLimits:
     #: largest virtual stiffness (N/m) inside the measured stable region (``gains.yaml``)
     max_stiffness_n_m: float | None = None
 
+    def as_dict(self) -> dict:
+        """The limits as plain JSON-ready values (SI units)."""
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+
     @classmethod
     def from_params(cls, params: PhantomParams = DEFAULT, *, max_stiffness_n_m: float | None = None) -> DeviceLimits:
         return cls(
@@ -66,10 +78,18 @@ class DeviceState:
 
 
 class Device(ABC):
-    """A 3-DOF haptic device commanded by motor torques (θ1, θ2, θ3 as in :mod:`params`)."""
+    """A 3-DOF haptic device commanded by motor torques (θ1, θ2, θ3 as in :mod:`params`).
+
+    Threading: one thread (the servo loop) calls :meth:`read` / :meth:`read_scalar`, the command
+    methods and :meth:`step` once per servo period; :meth:`stop` and :meth:`close` may come from
+    any thread and must leave the device commanding zero force.
+    """
 
     params: PhantomParams
     limits: DeviceLimits
+    #: Capability: ``True`` when the servo loop may drive the device to a pose on its own (the
+    #: calibration moves it); ``False`` when a person places it (the calibration prompts).
+    moves_itself: bool = True
 
     @abstractmethod
     def read(self) -> DeviceState:
@@ -87,6 +107,30 @@ class Device(ABC):
     @abstractmethod
     def time(self) -> float:
         """Device time (s) of the latest reading."""
+
+    # -- life cycle (defaults for a device without hardware behind it) ------------------------
+    def start(self) -> None:
+        """Enable force output (HDAPI ``hdEnable(HD_FORCE_OUTPUT)``, Force Dimension ``dhdEnableForce``)."""
+
+    def stop(self) -> None:
+        """Let go: command zero torque and disable force output; :meth:`start` may follow."""
+        self.command_torque_scalar(0.0, 0.0, 0.0)
+
+    def close(self) -> None:
+        """:meth:`stop`, then release the device; a second call does nothing."""
+        self.stop()
+
+    def __enter__(self):
+        self.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def describe(self) -> dict:
+        """Name, capability and limits (what ``vishap devices`` prints)."""
+        return {"class": f"{type(self).__module__}:{type(self).__qualname__}", "moves_itself": bool(self.moves_itself),
+                "servo_rate_hz": float(self.params.servo_rate_hz), "limits": self.limits.as_dict()}
 
     # -- derived and fast paths -------------------------------------------------------------
     def command_force(self, F_robot) -> None:
