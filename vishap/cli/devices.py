@@ -1,0 +1,19 @@
+"""``vishap devices``: the registered haptic-device drivers and, where they open here, their limits."""
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("devices", help="list the haptic-device drivers (entry points 'vishap.devices') and their limits")
+    p.add_argument("--no-open", action="store_true", help="only list names and targets; open no device")
+    p.set_defaults(func=_devices)
+
+
+def _devices(args: argparse.Namespace) -> int:
+    from vishap.robot.drivers import describe_all, registered
+
+    rows = {n: {"target": t} for n, t in registered().items()} if args.no_open else describe_all()
+    print(json.dumps(rows, indent=2))
+    return 0
