@@ -21,12 +21,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     st.add_argument("--out", required=True, help="rig file to write (OpenCV FileStorage YAML)")
     st.set_defaults(func=_stereo)
 
-    rb = cs.add_parser("robot", help="camera-to-robot transform from end-effector marker views (Eq. 3)")
-    rb.add_argument("--sim", action="store_true", help="use the simulated arm and the synthetic renderer")
-    rb.add_argument("--poses", type=int, default=12, help="number of end-effector poses (default 12)")
-    rb.add_argument("--seed", type=int, default=0, help="random seed (pose jitter, render noise)")
-    rb.add_argument("--rig", default=None, help="rig file (default: the synthetic renderer's default rig)")
-    rb.add_argument("--size", default=None, help="render size WxH (default: the rig's)")
+    rb = cs.add_parser("robot", help="camera-to-robot transform from end-effector marker views (Eq. 3)",
+                       description="Move the device through N poses (or ask you to place a device that cannot move "
+                                   "itself), find its green end-effector marker in both cameras, solve T_robot_cam.")
+    rb.add_argument("--device", default=None, help="device: sim | a registered name (vishap devices) | module:Class")
+    rb.add_argument("--cameras", default=None,
+                    help="stereo source: cam:L,R | cam:SBS | L.mp4,R.mp4 | sbs:VIDEO | a recorded folder | "
+                         "render (the synthetic renderer watching the sim device)")
+    rb.add_argument("--sim", action="store_true", help="same as --device sim --cameras render")
+    rb.add_argument("--poses", type=int, default=12, help="number of usable end-effector poses (default 12)")
+    rb.add_argument("--seed", type=int, default=0, help="random seed (pose sequence, render noise)")
+    rb.add_argument("--rig", default=None, help="rig file (required with real cameras; default for render: the "
+                                               "synthetic renderer's rig)")
+    rb.add_argument("--size", default=None, help="render size WxH (render only; default: the rig's)")
+    rb.add_argument("--frames-per-pose", type=int, default=None,
+                    help="frames pulled per pose, the last one used (default 3 for live cameras, else 1)")
     rb.add_argument("--robust", action="store_true", help="robust (LMedS) fit instead of plain least squares")
     rb.add_argument("--out", required=True, help="calibration file to write (YAML)")
     rb.add_argument("--poses-out", default=None, help="also write the pose set and measurements here (.npz)")
@@ -45,17 +54,65 @@ def _stereo(args: argparse.Namespace) -> int:
 
 def _robot(args: argparse.Namespace) -> int:
     from vishap._core.errors import ConfigError
-    from vishap.registration.sim import calibrate_sim
 
-    if not args.sim:
-        raise ConfigError("only --sim is available: a real device driver is not part of this build", field="--sim")
+    device_spec, cameras = args.device, args.cameras
+    if args.sim:
+        if (device_spec or "sim") != "sim" or (cameras or "render") != "render":
+            raise ConfigError("--sim is --device sim --cameras render; drop --sim to use another device or cameras",
+                              field="--sim")
+        device_spec, cameras = "sim", "render"
+    if device_spec is None or cameras is None:
+        raise ConfigError("give --device NAME and --cameras SPEC (or --sim for the simulated set-up)", field="--device")
     size = None
     if args.size:
         try:
             size = tuple(int(s) for s in args.size.lower().split("x"))
         except ValueError:
             raise ConfigError(f"expected WxH such as 320x240, got {args.size!r}", field="--size") from None
-    result = calibrate_sim(n_poses=args.poses, seed=args.seed, rig_path=args.rig, size=size, robust=args.robust,
-                           out=args.out, poses_out=args.poses_out)
+    if cameras == "render":
+        if device_spec != "sim":
+            raise ConfigError(f"rendered cameras watch the simulated device only, not {device_spec!r}",
+                              field="--cameras")
+        from vishap.registration.sim import calibrate_sim
+
+        result = calibrate_sim(n_poses=args.poses, seed=args.seed, rig_path=args.rig, size=size, robust=args.robust,
+                               out=args.out, poses_out=args.poses_out)
+    else:
+        if size is not None:
+            raise ConfigError("--size applies to rendered cameras only", field="--size")
+        result = _robot_real(args, device_spec, cameras)
     print(json.dumps(result))
     return 0
+
+
+def _robot_real(args: argparse.Namespace, device_spec: str, cameras: str) -> dict:
+    """The shared procedure on a driver and real (or recorded) cameras."""
+    import sys
+
+    from vishap._core.errors import ConfigError
+    from vishap.registration.procedure import console_prompt, run_calibration
+    from vishap.robot.drivers import open_device
+    from vishap.vision.capture import open_source
+    from vishap.vision.rig import StereoRig
+
+    source = open_source(cameras)
+    rig = getattr(source, "rig", None)
+    if args.rig is not None:
+        rig = StereoRig.load(args.rig)
+    if rig is None:
+        source.close()
+        raise ConfigError("the cameras' stereo calibration is needed (make it with 'vishap calibrate stereo')",
+                          field="--rig")
+    frames = args.frames_per_pose or (3 if cameras.startswith(("cam:", "sbs-cam:")) else 1)
+    try:
+        device = open_device(device_spec)
+        try:
+            prompt = None if device.moves_itself else console_prompt(
+                args.poses, say=lambda m: print(m, file=sys.stderr))
+            return run_calibration(device, source, rig, n_poses=args.poses, seed=args.seed, prompt=prompt,
+                                   robust=args.robust, frames_per_pose=frames, out=args.out, poses_out=args.poses_out,
+                                   describe={"device": device_spec, "cameras": cameras})
+        finally:
+            device.close()
+    finally:
+        source.close()

@@ -31,13 +31,23 @@ from vishap._core.errors import CalibrationError
 from vishap._core.pose import from_rt, invert, matrix_to_rotvec, rotvec_to_matrix
 from vishap.registration.marker import detect_marker
 from vishap.registration.rigid import RigidTransform
+from vishap.robot.params import WORKSPACE_MAX, WORKSPACE_MIN
 
-__all__ = ["MARKER_RADIUS_M", "REACHABLE_BOX", "select_poses", "Observations", "measure", "solve", "refine_reprojection", "report"]
+__all__ = ["MARKER_RADIUS_M", "REACHABLE_BOX", "PoseDropped", "StopMeasuring", "select_poses", "Observations",
+           "measure", "solve", "refine_reprojection", "report"]
 
 # Radius of the calibration marker (the synthetic renderer's green sphere), metres.
 MARKER_RADIUS_M = 0.005
-# Reachable box shared by all areas (robot frame, metres): x, y, z ranges.
-REACHABLE_BOX = np.array([[0.10, 0.30], [-0.065, 0.065], [-0.20, -0.04]])
+# Reachable box shared by all areas (robot frame, metres; rows x, y, z): the arm's workspace.
+REACHABLE_BOX = np.column_stack([WORKSPACE_MIN, WORKSPACE_MAX])
+
+
+class PoseDropped(Exception):
+    """Raised by ``move_to`` or ``grab`` in :func:`measure`: this pose is lost (the message says why)."""
+
+
+class StopMeasuring(Exception):
+    """Raised by ``move_to`` or ``grab`` in :func:`measure`: visit no more poses (source ended, user stopped)."""
 
 
 def select_poses(n: int, seed: int = 0, *, box=REACHABLE_BOX, margin: float = 0.01,
@@ -103,7 +113,9 @@ def measure(targets_robot, rig, *, move_to: Callable[[np.ndarray], np.ndarray | 
 
     ``move_to(target) -> p_robot`` moves the arm (returns the forward-kinematics position of the
     joints read back, or ``None`` when it cannot reach); ``grab(p_robot, target) -> (left, right)``
-    returns the stereo pair (BGR) taken there. Visits every target, or with ``needed`` stops as
+    returns the stereo pair (BGR) taken there. Either may raise :class:`PoseDropped` (the pose is
+    lost, for the reason given) or :class:`StopMeasuring` (no more poses: the observations end
+    before that target). Visits every target, or with ``needed`` stops as
     soon as that many poses are usable (as an operator moves on to another pose when the marker
     is hidden); the observations cover the targets visited.
 
@@ -126,13 +138,21 @@ def measure(targets_robot, rig, *, move_to: Callable[[np.ndarray], np.ndarray | 
     visited = 0
     p_cam, reasons = p_tri, found
     for i, target in enumerate(targets):
-        visited = i + 1
-        p = move_to(target)
-        if p is None:
-            found.append("target not reachable")
+        try:
+            p = move_to(target)
+            if p is None:
+                visited = i + 1
+                found.append("target not reachable")
+                continue
+            left, right = grab(p, target)
+        except PoseDropped as exc:
+            visited = i + 1
+            found.append(str(exc))
             continue
+        except StopMeasuring:
+            break
+        visited = i + 1
         p_robot[i] = p
-        left, right = grab(p_robot[i], target)
         dl, dr = detect_marker(left), detect_marker(right)
         if dl:
             uv_l[i] = dl.uv
