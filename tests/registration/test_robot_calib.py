@@ -111,3 +111,23 @@ def test_occluded_or_unreachable_poses_are_dropped_and_reported(setup, rng):
     assert not fit and "only 1 pose" in fit.reason
     with pytest.raises(CalibrationError, match="failed"):
         report(fit, obs)
+
+
+def test_a_dropped_pose_and_a_stop_end_the_visit_as_told(setup, rng):
+    """move_to/grab raise PoseDropped (that pose is lost, with its reason) or StopMeasuring (no more poses)."""
+    from vishap.registration.robot_calib import PoseDropped, StopMeasuring
+
+    rig, T_true = setup
+    targets = select_poses(8, seed=4)
+
+    def move_to(t):
+        if np.array_equal(t, targets[1]):
+            raise PoseDropped("did not settle")
+        if np.array_equal(t, targets[6]):
+            raise StopMeasuring("source ended")
+        return t.copy()
+
+    obs = measure(targets, rig, move_to=move_to, grab=lambda p, t: sphere_pair(rig, T_true, p, noise=1.0, rng=rng))
+    assert len(obs.targets_robot) == 6 and obs.ok.tolist() == [True, False, True, True, True, True]
+    assert obs.reasons[1] == "did not settle" and np.isnan(obs.p_robot[1]).all()
+    assert max(report(solve(obs, rig), obs, T_true)["per_axis_error_mm"]) < 0.5

@@ -87,8 +87,6 @@ def _robot(args: argparse.Namespace) -> int:
 
 def _robot_real(args: argparse.Namespace, device_spec: str, cameras: str) -> dict:
     """The shared procedure on a driver and real (or recorded) cameras."""
-    import sys
-
     from vishap._core.errors import ConfigError
     from vishap.registration.procedure import console_prompt, run_calibration
     from vishap.robot.drivers import open_device
@@ -107,8 +105,7 @@ def _robot_real(args: argparse.Namespace, device_spec: str, cameras: str) -> dic
     try:
         device = open_device(device_spec)
         try:
-            prompt = None if device.moves_itself else console_prompt(
-                args.poses, say=lambda m: print(m, file=sys.stderr))
+            prompt = None if device.moves_itself else console_prompt(args.poses)
             return run_calibration(device, source, rig, n_poses=args.poses, seed=args.seed, prompt=prompt,
                                    robust=args.robust, frames_per_pose=frames, out=args.out, poses_out=args.poses_out,
                                    describe={"device": device_spec, "cameras": cameras})

@@ -18,6 +18,7 @@
 """
 from __future__ import annotations
 
+import sys
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -273,13 +274,26 @@ def run_calibration(device, source, rig, *, n_poses: int, seed: int = 0, prompt=
     return record
 
 
-def console_prompt(n_poses: int, *, ask=input, say=print) -> Callable[[int, np.ndarray], None]:
-    """A prompt for a person placing the device: the target in millimetres, Enter when in place, q to stop."""
+def _ask(question: str) -> str:
+    sys.stderr.write(question)
+    sys.stderr.flush()
+    line = sys.stdin.readline()
+    if not line:
+        raise StopMeasuring("no more answers (end of input)")
+    return line
+
+
+def console_prompt(n_poses: int, *, ask: Callable[[str], str] | None = None) -> Callable[[int, np.ndarray], None]:
+    """A prompt for a person placing the device: the target in millimetres, Enter when in place, q to stop.
+
+    ``ask`` (default: the question on stderr, the answer from stdin, so that stdout keeps only the
+    JSON record) shows the question and returns the answer.
+    """
 
     def prompt(index: int, target_robot: np.ndarray) -> None:
         x, y, z = (float(v) * 1e3 for v in target_robot)
-        answer = ask(f"pose {index + 1} (need {n_poses} usable): place the marker near x={x:.0f} y={y:.0f} z={z:.0f} mm "
-                     f"(robot frame), hold it still, press Enter (q: stop) ")
+        answer = (ask or _ask)(f"pose {index + 1} (need {n_poses} usable): place the marker near x={x:.0f} "
+                               f"y={y:.0f} z={z:.0f} mm (robot frame), hold it still, press Enter (q: stop) ")
         if answer.strip().lower() in ("q", "quit"):
             raise StopMeasuring("stopped by the user")
 
