@@ -187,3 +187,15 @@ def test_stopping_early_leaves_too_few_poses(standin, rng):
         calibrate(dev, source, StereoRig.from_fov(320, 240, 60.0, 0.06), n_poses=4, prompt=console_prompt(4, ask=ask))
     with pytest.raises(StopMeasuring):
         console_prompt(4, ask=lambda q: "q")(0, np.zeros(3))
+
+
+def test_cli_refuses_an_unknown_device_before_opening_cameras(tmp_path, capsys):
+    from vishap.cli import main
+
+    out = tmp_path / "cr.yaml"
+    code = main(["calibrate", "robot", "--device", "phantom", "--cameras", "cam:97,98", "--rig", "rig.yaml",
+                 "--out", str(out)])
+    assert code == 2 and not out.exists()
+    assert "unknown device 'phantom' (known: " in capsys.readouterr().err
+    assert main(["calibrate", "robot", "--out", str(out)]) == 2
+    assert "--device NAME and --cameras SPEC" in capsys.readouterr().err

@@ -89,10 +89,11 @@ def _robot_real(args: argparse.Namespace, device_spec: str, cameras: str) -> dic
     """The shared procedure on a driver and real (or recorded) cameras."""
     from vishap._core.errors import ConfigError
     from vishap.registration.procedure import console_prompt, run_calibration
-    from vishap.robot.drivers import open_device
+    from vishap.robot.drivers import open_device, resolve
     from vishap.vision.capture import open_source
     from vishap.vision.rig import StereoRig
 
+    resolve(device_spec)  # an unknown driver is reported before any camera is opened
     source = open_source(cameras)
     rig = getattr(source, "rig", None)
     if args.rig is not None:
