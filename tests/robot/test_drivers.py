@@ -81,6 +81,11 @@ def test_sim_is_the_mujoco_plant_with_kwargs_passed_through():
 
     dev = open_device("sim", passive_object=PassiveObject(mass_kg=0.02), sensor="encoder")
     assert type(dev) is MujocoPlant and dev.params.m_tip == 0.02 and dev.sensor == "encoder"
+    from vishap.robot.gains import load_gains
+
+    # the stiffness limit a real device reports at start-up: for the plant, the gains file's measured one
+    assert dev.limits.max_stiffness_n_m == load_gains()[1].max_stiffness_n_m is not None
+    assert open_device("sim", max_stiffness_n_m=500.0).limits.max_stiffness_n_m == 500.0
     assert dev.moves_itself
     dev.start()
     dev.command_torque_scalar(0.1, 0.1, 0.1)

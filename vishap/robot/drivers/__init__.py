@@ -3,7 +3,8 @@
 A spec is one of
 
 * ``sim`` — the MuJoCo plant :class:`vishap.robot.plant.MujocoPlant` (keyword arguments such as
-  ``passive_object``, ``sensor`` or ``q0`` are passed through);
+  ``passive_object``, ``sensor`` or ``q0`` are passed through; its stiffness limit comes from the
+  gains file unless given, :mod:`vishap.robot.drivers.sim`);
 * a name registered by any installed package in the Python entry-point group ``vishap.devices``
   (``[project.entry-points."vishap.devices"] NAME = "module:Class"``); vishap registers
   ``openhaptics`` (:class:`vishap.robot.drivers.openhaptics.OpenHapticsDevice`) there;
@@ -26,7 +27,7 @@ __all__ = ["ENTRY_POINT_GROUP", "BUILTIN", "registered", "resolve", "open_device
 
 ENTRY_POINT_GROUP = "vishap.devices"
 #: Drivers every installation has, whatever its package metadata says.
-BUILTIN = {"sim": "vishap.robot.plant:MujocoPlant"}
+BUILTIN = {"sim": "vishap.robot.drivers.sim:sim_device"}
 
 
 def registered() -> dict[str, str]:
