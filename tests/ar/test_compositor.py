@@ -180,3 +180,22 @@ def test_right_camera_projects_like_the_rig(distorted_rig, rng):
     for v, u in rng.integers(0, [480, 640], (10, 2)):
         uv = cam.project_cam(rays[v, u].astype(np.float64) * 0.4)
         np.testing.assert_allclose(uv[0], [u, v], atol=1e-3)
+
+
+def test_a_shared_segmenter_is_left_to_the_vision_to_learn(rng):
+    from vishap.vision.segment import Segmenter
+    from vishap.vision.skin_model import SkinModel
+
+    rig = _rig()
+    seg = Segmenter(SkinModel.load())
+    ar = ARCompositor(rig, default_T_robot_cam(baseline_m=0.06), load_scene("wall"), "phantom_premium_1_0",
+                      segmenter=seg)
+    img = rng.integers(90, 140, (120, 160, 3), dtype=np.uint8)
+    q = np.array([0.0, 0.2, 0.3])
+    for k in range(12):
+        out = ar.compose(img, None, q, 0.1 * k)
+        assert np.array_equal(out[40:], img[40:])   # passed through with a note
+    assert not seg.learned                          # the compositor did not learn the vision's model
+    seg.learn([img] * 3)
+    out = ar.compose(img, None, q, 2.0)
+    assert not np.array_equal(out[40:], img[40:])   # now the augmented view

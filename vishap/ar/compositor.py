@@ -20,10 +20,10 @@ Bad input never gives a wrong overlay: without a calibration, with an unusable o
 unknown device geometry the compositor is *off* and returns the plain frame with a note saying why;
 a frame without a finite joint state is passed through with a note.
 
-``skin_mask=None`` segments the frame with ``segmenter`` (a learned
-:class:`vishap.vision.segment.Segmenter`, e.g. the vision pipeline's left one), or with the
-compositor's own one, which learns its background from the first ``learn_frames`` frames (the hand
-must be out of view then, as for the vision).
+``skin_mask=None`` segments the frame with ``segmenter`` (a :class:`vishap.vision.segment.Segmenter`,
+e.g. the vision pipeline's left one: frames are passed through with a note until it has learned),
+or with the compositor's own one, which learns its background from the first ``learn_frames``
+frames (the hand must be out of view then, as for the vision).
 """
 from __future__ import annotations
 
@@ -91,6 +91,7 @@ class ARCompositor:
         self.scene = scene
         self.reason = None
         self.segmenter = segmenter
+        self._own_segmenter = False
         self.learn_frames = int(learn_frames)
         self._learn_buf: list = []
         self.timings: dict[str, float] = {}
@@ -132,7 +133,10 @@ class ARCompositor:
             from vishap.vision.skin_model import SkinModel
 
             self.segmenter = Segmenter(SkinModel.load())
+            self._own_segmenter = True
         if not self.segmenter.learned:
+            if not self._own_segmenter:  # another stage (the vision) learns it: wait for it
+                return None
             self._learn_buf.append(image)
             if len(self._learn_buf) < self.learn_frames:
                 return None
@@ -211,7 +215,8 @@ class ARCompositor:
             self.timings["skin_ms"] = 1e3 * (time.perf_counter() - c1)
             if skin_mask is None:
                 n = len(self._learn_buf)
-                return draw_note(image, f"AR: learning the background ({n}/{self.learn_frames})")
+                what = f" ({n}/{self.learn_frames})" if self._own_segmenter else ""
+                return draw_note(image, f"AR: learning the background{what}")
         q = np.asarray(q_device, dtype=np.float64).reshape(-1) if q_device is not None else np.full(3, np.nan)
         if q.shape != (3,) or not np.all(np.isfinite(q)):
             return draw_note(image, "AR paused: no device joint state (plain video)")
