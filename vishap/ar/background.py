@@ -84,11 +84,13 @@ class LearnedBackground:
             raise ShapeError(f"image: expected uint8 {self.mean.shape}, got {image.dtype} {image.shape}")
         free8 = (np.asarray(free) != 0).view(np.uint8)  # 0/1
         young8 = cv2.bitwise_and(free8, cv2.compare(self.count, self.average_frames, cv2.CMP_LT))
-        if cv2.countNonZero(young8):  # equal-weight average of a pixel's first observations (few pixels)
-            young = young8.view(bool)
-            n = self.count[young].astype(np.float32) + 1.0
-            self.mean[young] += (image[young].astype(np.float32) - self.mean[young]) / n[:, None]
-            self.count[young] += 1
+        x, y, w, h = cv2.boundingRect(young8)
+        if w:  # equal-weight average of a pixel's first observations (few pixels: work in their box)
+            young = young8[y:y + h, x:x + w].view(bool)
+            mean, count = self.mean[y:y + h, x:x + w], self.count[y:y + h, x:x + w]
+            n = count[young].astype(np.float32) + 1.0
+            mean[young] += (image[y:y + h, x:x + w][young].astype(np.float32) - mean[young]) / n[:, None]
+            count[young] += 1
         old8 = cv2.bitwise_and(free8, cv2.bitwise_not(young8))
         old8 = cv2.bitwise_and(old8, cv2.compare(self.count, self.average_frames, cv2.CMP_GE))
         if cv2.countNonZero(old8):  # then an exponential average (cv2: one pass over the masked pixels)

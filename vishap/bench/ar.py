@@ -207,8 +207,9 @@ def _scene(name: str, res, frames: int, every: int, poses: int, sweep: int, seed
                 occl["objects on top (no occlusion)"].append((np.count_nonzero(~hand), cover.sum()))
                 if hand.any():
                     hand_recall.append((np.count_nonzero(shown & hand), np.count_nonzero(hand)))
-            if still is None or (contact is not None and still[0] is None):
-                still = (contact, np.hstack([pair.left, ar.last["deleted"], view, truth]))
+            overlap = int(np.count_nonzero((ar.last["skin"] > 0) & cover))  # the still: the hand most over an object
+            if still is None or overlap > still[0]:
+                still = (overlap, np.hstack([pair.left, ar.last["deleted"], view, truth]))
     finally:
         with_dev.close()
         without.close()
