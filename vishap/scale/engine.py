@@ -80,7 +80,7 @@ class Engine:
             out["address"] = self.address
         if self.ray is not None:
             out["nodes"] = sum(1 for n in self.ray.nodes() if n.get("Alive"))
-            out["cluster_cpus"] = float(self.ray.cluster_resources().get("CPU", 0.0))
+            out["cluster_cpus"] = sum(n["Resources"].get("CPU", 0.0) for n in self.ray.nodes() if n.get("Alive"))
         return out
 
     def remote(self, fn: Callable, **options):
@@ -122,7 +122,9 @@ def engine(workers: int | None = None, address: str | None = None, *, threads_pe
             ray.init(num_cpus=int(workers) * int(threads_per_worker), **common)
     try:
         if workers is None:
-            workers = max(1, int(ray.cluster_resources().get("CPU", 1) // int(threads_per_worker)))
+            # the nodes' own records: the cluster's resource view lags behind a node that just joined
+            cpus = sum(n["Resources"].get("CPU", 0.0) for n in ray.nodes() if n.get("Alive"))
+            workers = max(1, int(cpus // int(threads_per_worker)))
         yield Engine(int(workers), int(threads_per_worker), address, ray)
     finally:
         if owned:
