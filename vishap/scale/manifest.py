@@ -6,7 +6,7 @@ Layout::
     {"format": "vishap-dataset/1", "command": "...", "parameters": {...},
      "sequences": {"seed-000003": {"parameters": {...}, "frames": 3, "bytes": 123456,
                                    "files": {"gt.npz": "<sha256>", "left/000000.png": "<sha256>", ...},
-                                   "seconds": 1.9, "node": "<ray node id or 'local'>"}, ...}}
+                                   "seconds": 1.9, "cpu_seconds": 2.7, "node": "<ray node id or 'local'>"}, ...}}
 
 The manifest is rewritten (temporary file + rename) after every finished sequence.
 """

@@ -88,10 +88,11 @@ def _watch(folder: Path, report: Callable[[int], None], stop: threading.Event) -
 
 def render_files(spec, report: Callable[[int], None] | None = None) -> dict:
     """Render one sequence with :func:`~vishap.sim.writer.write_sequence` in a temporary folder and
-    return its files: ``{"files": {relpath: bytes}, "sha256": {relpath: hex}, "seconds": s}``."""
+    return its files: ``{"files": {relpath: bytes}, "sha256": {relpath: hex}, "seconds": s, "cpu_seconds": s}``
+    (CPU time of the whole process, the renderer's threads included)."""
     from vishap.sim.writer import write_sequence
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory(prefix="vishap-seq-") as tmp:
         stop = threading.Event()
         watcher = None
@@ -105,7 +106,8 @@ def render_files(spec, report: Callable[[int], None] | None = None) -> dict:
             if watcher is not None:
                 watcher.join()
         files = {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
-    return {"files": files, "sha256": {k: sha256(v) for k, v in files.items()}, "seconds": time.perf_counter() - t0}
+    return {"files": files, "sha256": {k: sha256(v) for k, v in files.items()}, "seconds": time.perf_counter() - t0,
+            "cpu_seconds": time.process_time() - c0}
 
 
 def _render_task(spec, key: str, progress) -> dict:
@@ -243,6 +245,7 @@ def build_sequences(jobs: Sequence[Job], out: str | Path, *, workers: int | None
             manifest["sequences"][job.rel] = {
                 "parameters": job.parameters, "frames": frames[job.rel], "files": res["sha256"],
                 "bytes": sum(len(v) for v in res["files"].values()), "seconds": round(res["seconds"], 3),
+                "cpu_seconds": round(res["cpu_seconds"], 3),
                 "node": res.get("node", "local")}
             save_manifest(out, manifest)
 
