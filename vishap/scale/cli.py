@@ -28,7 +28,7 @@ def seed_range(text: str) -> range:
 
 def add_engine_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, default=None,
-                   help="sequences rendered at once (default: this machine's cores; with --address, the cluster's CPUs); "
+                   help="tasks (sequences, cases) run at once (default: this machine's cores; with --address, the cluster's CPUs); "
                         "1 renders in this process without Ray")
     p.add_argument("--address", default=None,
                    help="an existing Ray cluster (HOST:PORT, ray://HOST:PORT or auto); unreachable: an error, never a local run")
