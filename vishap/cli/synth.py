@@ -49,6 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="exact pixels: no sensor noise, defocus, motion blur or auto-exposure")
     p.add_argument("--msaa", type=int, default=0, help="anti-aliasing samples (0, 2, 4, 8; labels then cost a pass)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_scale_options(p)
     p.set_defaults(func=_run)
 
 
@@ -64,6 +65,8 @@ def _run(args: argparse.Namespace) -> int:
                         effects=args.effects, msaa=args.msaa, fps=args.fps, hand_free_frames=args.hand_free,
                         start_s=args.start)
     _check_render_args(spec)
+    if args.seeds is not None or args.workers is not None or args.address is not None:
+        return _run_seeds(args, spec)
     out = write_sequence(args.out, spec, overwrite=args.overwrite, progress=not args.quiet)
     from vishap.sim.reader import SyntheticSequence
 
@@ -83,3 +86,18 @@ def _check_render_args(spec) -> None:
     choose_background(spec.background, spec.seed)
     if spec.skin_tone is not None:
         skin_tone_rgb(spec.skin_tone)
+
+
+def _add_scale_options(p: argparse.ArgumentParser) -> None:
+    from vishap.scale.cli import add_engine_options, seed_range
+
+    p.add_argument("--seeds", type=seed_range, default=None, metavar="A:B",
+                   help="render seeds A … B-1, one folder seed-NNNNNN each, plus manifest.json under --out "
+                        "(a re-run resumes); --seed is then ignored")
+    add_engine_options(p)
+
+
+def _run_seeds(args: argparse.Namespace, spec) -> int:
+    from vishap.scale.cli import run_seeds
+
+    return run_seeds(args, spec)

@@ -1,0 +1,68 @@
+"""Command-line pieces shared by ``vishap synth --seeds`` and ``vishap dataset build``: the engine
+options and the seed range."""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+
+from vishap._core.errors import ConfigError
+
+__all__ = ["add_engine_options", "seed_range", "default_workers", "run_seeds"]
+
+
+def seed_range(text: str) -> range:
+    """``A:B`` → seeds A … B−1 (a Python range; ``0:100`` is 100 seeds)."""
+    a, sep, b = str(text).partition(":")
+    try:
+        if not sep:
+            raise ValueError
+        r = range(int(a), int(b))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected A:B (seeds A … B-1), got {text!r}") from None
+    if r.start < 0 or len(r) == 0:
+        raise argparse.ArgumentTypeError(f"expected 0 <= A < B, got {text!r}")
+    return r
+
+
+def add_engine_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--workers", type=int, default=None,
+                   help="tasks (sequences, cases) run at once (default: this machine's cores; with --address, the cluster's CPUs); "
+                        "1 renders in this process without Ray")
+    p.add_argument("--address", default=None,
+                   help="an existing Ray cluster (HOST:PORT, ray://HOST:PORT or auto); unreachable: an error, never a local run")
+
+
+def default_workers(args: argparse.Namespace) -> int | None:
+    if args.workers is not None:
+        return args.workers
+    return None if args.address is not None else (os.cpu_count() or 1)
+
+
+def run_seeds(args: argparse.Namespace, spec) -> int:
+    """``vishap synth --seeds A:B [--workers N] [--address ADDR]``: one sequence per seed."""
+    from vishap.scale.manifest import sha256
+    from vishap.scale.sequences import Job, build_sequences, seed_folder, spec_parameters
+
+    if args.seeds is None:
+        raise ConfigError("--workers and --address render several seeds: give --seeds A:B", field="seeds")
+    if args.overwrite:
+        raise ConfigError("--overwrite does not apply to --seeds: a re-run keeps finished sequences and redoes the rest",
+                          field="overwrite")
+    rig_sha = None
+    if args.rig:
+        with open(args.rig, "rb") as f:
+            rig_sha = sha256(f.read())
+    jobs = []
+    for s in args.seeds:
+        one = dataclasses.replace(spec, seed=s)
+        jobs.append(Job(seed_folder(s), one, spec_parameters(one, rig_sha256=rig_sha)))
+    common = spec_parameters(spec, rig_sha256=rig_sha)
+    common.pop("seed")
+    common["seeds"] = [args.seeds.start, args.seeds.stop]
+    summary = build_sequences(jobs, args.out, workers=default_workers(args), address=args.address,
+                              command="synth", parameters=common, progress=not args.quiet)
+    print(json.dumps({"out": summary["out"], "built": len(summary["built"]), "skipped": len(summary["skipped"]),
+                      "seconds": round(summary["seconds"], 3), "engine": summary["engine"]}))
+    return 0
