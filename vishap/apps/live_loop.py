@@ -227,7 +227,7 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
                    if len(log.channel("scene")) else None)
     import json
 
-    from vishap.bench._common import to_jsonable
+    from vishap._core.output import to_jsonable
 
     summary = to_jsonable(summary)
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
