@@ -18,15 +18,13 @@ import numpy as np
 from vishap._core.errors import CalibrationError
 from vishap._core.pose import invert
 from vishap.apps.config import DemoConfig
+from vishap.world.finger import TIP_RADIUS_M
 
 __all__ = ["build", "meta", "calibrate", "make_world", "make_scene_step", "make_cycle", "vision_result",
            "RIG_HFOV_DEG", "RIG_BASELINE_M", "TIP_RADIUS_M"]
 
 RIG_HFOV_DEG = 60.0
 RIG_BASELINE_M = 0.06
-#: the fingertip cap's radius: the system's model of the user's finger (the pad point is the cap
-#: centre vision finds minus this along the surface normal); the synthetic hand draws the same cap
-from vishap.sim.state import TIP_RADIUS_M  # noqa: E402
 
 
 def make_rig(cfg: DemoConfig):

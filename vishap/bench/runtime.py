@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from vishap.bench._common import machine_info, new_figure, save_figure
+from vishap.robot.params import WORKSPACE_MAX, WORKSPACE_MIN
 
 HELP = "live servo lateness (p99, >1 ms fraction) while vision runs; SCHED_FIFO vs best-effort"
 
@@ -111,7 +112,7 @@ def _run_config(cfg: Config, seconds: float, frames, rig, T_robot_cam, camera_hz
                 est = vision.process(StereoFrame(k, now, f.left, f.right))
                 vision_ms.append((time.perf_counter() - c0) * 1e3)
                 if est.found:
-                    last = np.clip(R @ est.p_cam + t, (0.10, -0.065, -0.20), (0.30, 0.065, -0.04))
+                    last = np.clip(R @ est.p_cam + t, WORKSPACE_MIN, WORKSPACE_MAX)
                 servo.write_target(target_record(last, servo.now(), 1.0))
             else:
                 servo.write_target(target_record(last, servo.now(), 1.0))
