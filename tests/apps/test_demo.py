@@ -4,11 +4,9 @@ import json
 import numpy as np
 import pytest
 
-pytest.importorskip("vishap.sim.renderer", reason="the synthetic renderer is not installed")
-
-from vishap.apps import DemoConfig, run_demo  # noqa: E402
-from vishap.apps.log import load_log  # noqa: E402
-from vishap.apps.replay import replay  # noqa: E402
+from vishap.apps import DemoConfig, run_demo
+from vishap.apps.log import load_log, read_frame_png, write_frame_png
+from vishap.apps.replay import replay
 
 FAULTS = [
     {"kind": "finger_lost", "t_start": 0.80, "t_end": 1.10},
@@ -96,6 +94,50 @@ def test_replay_reproduces_vision_world_and_tactile(run, tmp_path):
     assert main(["replay", str(out / "log.npz"), "--out", str(tmp_path / "cli")]) == 0
 
 
+def test_replay_detects_a_log_that_differs_from_what_the_core_computes(run, tmp_path):
+    """Replay compares its re-run with the demo's real log: one changed force-law sample, one changed
+    world target or one changed pixel must each make it report a difference."""
+    out, _, _, _ = run
+    with np.load(out / "log.npz", allow_pickle=False) as z:
+        arrays = {k: z[k].copy() for k in z.files}
+    law = np.flatnonzero(np.any(arrays["servo/F_law"] != 0, axis=1))
+    assert law.size, "the demo rendered no force law"
+
+    def tampered(name, edit):
+        d = tmp_path / name
+        d.mkdir()
+        (d / "frames").symlink_to(out / "frames", target_is_directory=True)
+        a = {k: v.copy() for k, v in arrays.items()}
+        edit(a)
+        np.savez_compressed(d / "log.npz", **a)
+        return replay(d)
+
+    def law_edit(a):
+        a["servo/F_law"][law[len(law) // 2], 2] += 1e-9
+
+    def world_edit(a):
+        i = int(np.flatnonzero(np.all(np.isfinite(a["scene/X_d"]), axis=1))[-1])
+        a["scene/X_d"][i, 0] += 1e-9
+
+    rep = tampered("law", law_edit)
+    assert not rep["identical"] and rep["world"]["F_law"] > 0 and rep["vision"]["p_cam"] == 0.0
+    rep = tampered("world", world_edit)
+    assert not rep["identical"] and rep["world"]["X_d"] > 0
+    # a changed frame changes what vision finds
+    frames = tmp_path / "pix"
+    frames.mkdir()
+    import shutil
+
+    shutil.copytree(out / "frames", frames / "frames")
+    shutil.copy(out / "log.npz", frames / "log.npz")
+    k = int(np.flatnonzero(arrays["vision/found"])[len(np.flatnonzero(arrays["vision/found"])) // 2])
+    img = read_frame_png(frames / "frames", "left", k)
+    img[:] = img[:, ::-1]  # the left view mirrored: the tip moves
+    write_frame_png(frames / "frames", "left", k, img)
+    rep = replay(frames)
+    assert not rep["identical"] and rep["vision"]["uv_left"] > 1.0
+
+
 def test_live_loop_renders_the_wall_law_on_the_recorded_frames(run, tmp_path):
     """Live mode (servo cycle in its own process, mailboxes) on the demo's frames played back at 30 Hz,
     the simulated device pressed by the recording's finger: the wall's law must be rendered."""
@@ -117,7 +159,7 @@ def test_live_loop_renders_the_wall_law_on_the_recorded_frames(run, tmp_path):
           "hand_visible": v["hand_visible"][:n], "T_robot_cam": meta["T_robot_cam_true"]}
     cfg = DemoConfig(scene="wall", seed=1, video=False, save_frames=False)
     summary = run_live_loop(cfg, out=tmp_path, source=ArraySource(pairs), rig=_rig_from_string(meta["rig"]),
-                            T_robot_cam=np.asarray(meta["T_robot_cam_est"]), gt=gt, device="sim", realtime=False)
+                            T_robot_cam=np.asarray(meta["T_robot_cam_est"]), gt=gt, device="sim")
     from vishap.apps.log import load_log as _load
 
     lm, lch = _load(tmp_path)
