@@ -29,3 +29,27 @@ def test_live_takes_the_source_specs_of_vishap_track(tmp_path):
     assert spec == str(folder) and rig == folder / "rig.yaml" and calib is None and device == "sim"
     with pytest.raises(DeviceError, match="--calib is needed with a real device"):
         check_live(cameras=str(folder), rig=None, calib=None, device="vishap.robot.plant:MujocoPlant")
+
+
+def test_live_servo_cycle_runs_a_driver_named_module_class():
+    """A device given as module:Class (no simulated finger: a real finger would press it) runs the same
+    servo cycle: the guard tracks a fresh record and the log rows have the demo's schema."""
+    import numpy as np
+
+    from vishap.apps.config import DemoConfig
+    from vishap.apps.live_loop import LiveCycle
+    from vishap.runtime.core import TargetRecord
+
+    cyc = LiveCycle(DemoConfig(scene="wall").model_dump(), "vishap.robot.plant:MujocoPlant", None)
+    assert cyc.finger is None and type(cyc.cycle.step.device).__name__ == "MujocoPlant"
+    goal = (0.20, 0.0, -0.13)
+    for k in range(300):
+        t = k * 1e-3
+        rec = TargetRecord(1 + k // 30, goal, t, 1.0, True, True, 0, False, False)
+        state = cyc.step(t, np.append(rec.pack(), np.nan))
+    assert state[4] == 0 and state[5] == rec.seq  # tracking the newest record
+    res = cyc.finish()
+    servo = res["channels"]["servo"].arrays()
+    assert len(servo["t"]) == 300 and np.all(servo["guard"][1:] == 0)
+    assert np.all(np.isfinite(servo["F_cmd"])) and res["peak_force_n"] == 8.5
+    assert len(res["channels"]["tactile"]) == 300
