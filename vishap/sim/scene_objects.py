@@ -36,8 +36,8 @@ class SceneSpec:
     passive_shape: str
     passive_size_m: tuple[float, float, float]
     kind: str
+    passive_mount_offset_m: tuple[float, float, float]  # top face centre = end-effector + this
     travel_m: float = 0.0                      # key travel (button), 0 otherwise
-    passive_mount_offset_m: tuple[float, float, float] = (0.030, 0.0, 0.0)
 
 
 def load_scene_spec(name_or_path: str | Path) -> SceneSpec:

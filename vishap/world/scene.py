@@ -64,7 +64,7 @@ class PassiveObject(Schema):
     mass_kg: Positive
     #: the object's top face is centred at ``ee + mount_offset_m`` (robot frame): a short bracket holds
     #: it off the end-effector, whose forearm would otherwise stand where the finger touches
-    mount_offset_m: Vec3 = (0.030, 0.0, 0.0)
+    mount_offset_m: Vec3
 
     def for_mujoco(self):
         """The :class:`vishap.robot.mjcf.PassiveObject` the plant carries (a sphere by its radius)."""
