@@ -97,6 +97,95 @@ def recorded_finger(gt: dict, normal, tip_radius_m: float):
             tuple(np.median(d, axis=0)) if d.ndim == 2 and len(d) else None)
 
 
+class _Prefetcher:
+    """A recording's frames read ahead in a thread (image decoding releases the GIL), so that reading
+    files costs the loop no frame period; :meth:`wait_filled` gives a slow reader a head start."""
+
+    def __init__(self, source, depth: int):
+        import collections
+        import threading
+
+        self.depth = max(2, int(depth))
+        self.frames = collections.deque()
+        self.cond = threading.Condition()
+        self.done = False
+        self.error: BaseException | None = None
+        self._stop = False
+        self.thread = threading.Thread(target=self._read, args=(source,), daemon=True)
+        self.thread.start()
+
+    def _read(self, source) -> None:
+        try:
+            for f in source:
+                with self.cond:
+                    while len(self.frames) >= self.depth and not self._stop:
+                        self.cond.wait(0.1)
+                    if self._stop:
+                        return
+                    self.frames.append(f)
+                    self.cond.notify_all()
+        except BaseException as exc:  # handed to the loop, which raises it
+            self.error = exc
+        finally:
+            with self.cond:
+                self.done = True
+                self.cond.notify_all()
+
+    def wait_filled(self) -> None:
+        with self.cond:
+            while len(self.frames) < self.depth and not self.done:
+                self.cond.wait(0.1)
+
+    def pop(self):
+        """The next frame (blocks); None at the end."""
+        with self.cond:
+            while not self.frames and not self.done:
+                self.cond.wait(0.1)
+            if self.error is not None:
+                raise self.error
+            if not self.frames:
+                return None
+            f = self.frames.popleft()
+            self.cond.notify_all()
+            return f
+
+    def peek(self):
+        with self.cond:
+            return self.frames[0] if self.frames else None
+
+    def close(self) -> None:
+        with self.cond:
+            self._stop = True
+            self.cond.notify_all()
+        self.thread.join(timeout=5)
+
+
+def _frames(source, pace: bool, camera_hz: float, anchor: list):
+    """``(frame, late)`` pairs. A camera's frames come as its driver delivers them (it keeps the newest).
+    A recording is paced at its own time stamps after a head start of 2 s of frames read ahead; a frame
+    is ``late`` (to be dropped) when the next one is already due — latest-value semantics, as a camera
+    driver drops the frames nobody read. ``anchor`` = [recording time, monotonic time] of the
+    recording's clock: set by the first frame, and reset by the caller when that frame is through."""
+    if not pace:
+        for f in source:
+            yield f, False
+        return
+    pf = _Prefetcher(source, depth=int(2.0 * camera_hz))
+    try:
+        pf.wait_filled()
+        while (f := pf.pop()) is not None:
+            if anchor[0] is None:
+                anchor[:] = [f.t, time.monotonic()]
+            t_first, wall0 = anchor
+            wait = wall0 + (f.t - t_first) - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)
+            nxt = pf.peek()
+            yield f, nxt is not None and time.monotonic() >= wall0 + (nxt.t - t_first)
+    finally:
+        pf.close()
+
+
 def _dropped_row(t, k, mount, state) -> dict:
     nan2, nan3 = np.full(2, np.nan), np.full(3, np.nan)
     return {"t": t, "index": k, "dropped": True, "found": False, "p_cam": nan3, "uv_left": nan2, "uv_right": nan2,
@@ -160,27 +249,15 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
     servo.start()
     wall0 = time.monotonic()
     try:
-        t_first = None
-        wait = 0.0
-        frame_period_s = 1.0 / cfg.camera_hz
-        for k, frame in enumerate(source):
-            grabbed = time.monotonic()
-            if t_first is None:
-                t_first = frame.t
-            if pace:  # a recording: wait for the frame's own time
-                wait = (frame.t - t_first) - (grabbed - wall0)
-                if wait > 0:
-                    time.sleep(wait)
-                grabbed = time.monotonic()
-            if grabbed - wall0 > duration_s:
+        anchor = [None, None]
+        for k, (frame, late) in enumerate(_frames(source, pace, cfg.camera_hz, anchor)):
+            if time.monotonic() - wall0 > duration_s:
                 break
             state, _ = servo.read_state()
             t = servo.now()  # the servo's clock at the grab, right also while the servo process is starved
             if not np.isfinite(offset):
                 offset = frame.t - t
-            if pace and wait < -frame_period_s:
-                # more than a frame behind the recording: drop it, as a camera's driver drops the
-                # frames nobody read, so that the targets stay fresh
+            if late:  # the next frame is already due: drop this one, so that the targets stay fresh
                 vis_ch.append(**_dropped_row(t, k, mount, state))
                 servo_guard_count.append(k)
                 continue
@@ -199,6 +276,11 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
             g = gt_index.get(round(float(frame.t), 6))
             tip_cam = np.full(3, np.nan) if g is None else np.asarray(gt["tip_cam"][g], float)
             tip_vis = False if g is None else bool(gt["tip_visible_left"][g] and gt["tip_visible_right"][g])
+            if k == 0 and pace:
+                # the recording's clock starts once its first frame is through: the first pass of
+                # vision and the world (imports, allocations) can take seconds on a loaded machine
+                anchor[:] = [frame.t, time.monotonic()]
+                offset = frame.t - servo.now()
             vis_ch.append(t=t, index=k, dropped=False, found=res["found"], p_cam=res["p_cam"], uv_left=res["uv_left"],
                           uv_right=res["uv_right"], confidence=res["confidence"], vision_ms=res["vision_ms"],
                           available_at=now, tip_cam_true=tip_cam,
