@@ -30,6 +30,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vishap.robot.device import DeviceState
+from vishap.robot.kinematics import tip_state_scalar
 from vishap.runtime.safety import TargetGuard
 
 __all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "ServoStep", "ServoTick", "GUARD_CODES",
@@ -217,6 +219,10 @@ class ServoStep:
         self.last_action = "idle"
         self._key = None
         self._retreat_key = None
+        self._read_scalar = self.device.read_scalar
+        self._l1, self._l2 = self.device.params.l1, self.device.params.l2
+        self._tip = tip_state_scalar
+        self._time = lambda: float(self.device.time)
 
     def reset(self) -> None:
         """Start a new run on the same device: guard, laws and target keys forgotten."""
@@ -226,9 +232,16 @@ class ServoStep:
         self._key = self._retreat_key = None
 
     def read(self):
-        """The device state and its contact point (the caller may act on the plant before :meth:`tick`)."""
-        dev = self.device.read()
-        return dev, np.asarray(dev.p_robot, float) + self.mount
+        """The device state and its contact point (the caller may act on the plant before :meth:`tick`).
+
+        From the device's scalar fast path and the arm's kinematics (as :class:`ServoLoop` reads it),
+        not :meth:`Device.read`, which costs about as much as the rest of the tick.
+        """
+        q1, q2, q3, w1, w2, w3 = self._read_scalar()
+        px, py, pz, vx, vy, vz = self._tip(q1, q2, q3, w1, w2, w3, self._l1, self._l2)
+        p = np.array((px, py, pz))
+        dev = DeviceState(self._time(), np.array((q1, q2, q3)), np.array((w1, w2, w3)), p, np.array((vx, vy, vz)))
+        return dev, p + self.mount
 
     def tick(self, t: float, rec: TargetRecord, dev=None) -> ServoTick:
         if dev is None:
@@ -243,7 +256,8 @@ class ServoStep:
         else:
             action, X_ee = "idle", None
         F_law, lam, R, changed = self.contact.update(p_dev, dev.v_robot, rec.subject,
-                                                     action in ("track", "hold") and (rec.imminent or rec.in_contact))
+                                                     (action == "track" or action == "hold")
+                                                     and (rec.imminent or rec.in_contact))
         if changed:
             self.controller.set_lambda(lam, None if lam is None else R)
         # the shaper takes a new sample when its key changes: a new record's capture time while
