@@ -16,12 +16,16 @@ recording in real time. Both processes write into one log with the batch demo's 
 from __future__ import annotations
 
 import functools
+import json
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
+from vishap._core.output import to_jsonable
 from vishap.apps.config import DemoConfig
+from vishap.apps.cycle import Finger
 from vishap.apps.log import SignalLog, write_frame_png
 
 __all__ = ["run_live_loop", "LiveCycle", "recorded_finger"]
@@ -186,6 +190,12 @@ def _frames(source, pace: bool, camera_hz: float, anchor: list):
         pf.close()
 
 
+def _frame_to_target_ms(vis: dict) -> float | None:
+    """Median age of a frame when its target record was published (servo clock), processed frames only."""
+    ok = ~vis["dropped"].astype(bool) if len(vis.get("t", [])) else np.zeros(0, bool)
+    return float(np.median(1e3 * (vis["available_at"][ok] - vis["t"][ok]))) if ok.any() else None
+
+
 def _dropped_row(t, k, mount, state) -> dict:
     nan2, nan3 = np.full(2, np.nan), np.full(3, np.nan)
     return {"t": t, "index": k, "dropped": True, "found": False, "p_cam": nan3, "uv_left": nan2, "uv_right": nan2,
@@ -232,19 +242,15 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
     if finger is not None and finger[3] is not None:
         log.meta["sleeve_finger_dir"] = finger[3]
     else:
-        from vishap.apps.cycle import Finger
-
         log.meta["sleeve_finger_dir"] = Finger.finger_dir if device == "sim" else None
     gt_index = {}
     if gt is not None:
         gt_index = {round(float(t), 6): i for i, t in enumerate(gt["t"])}
     vis_ch = log.channel("vision")
-    servo_guard_count: list[int] = []  # frames dropped here (counted with the guard's fault events)
+    dropped_frames: list[int] = []  # frames dropped here (counted with the guard's fault events)
     offset = np.nan
     # lossless frames for replay are written beside the loop (PNG encoding of a noisy pair takes longer
     # than a frame period here; OpenCV releases the GIL while it encodes)
-    from concurrent.futures import ThreadPoolExecutor
-
     writer = ThreadPoolExecutor(max_workers=1) if cfg.save_frames else None
     servo.start()
     wall0 = time.monotonic()
@@ -259,7 +265,7 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
                 offset = frame.t - t
             if late:  # the next frame is already due: drop this one, so that the targets stay fresh
                 vis_ch.append(**_dropped_row(t, k, mount, state))
-                servo_guard_count.append(k)
+                dropped_frames.append(k)
                 continue
             if writer is not None:
                 writer.submit(write_frame_png, out / "frames", "left", k, frame.left)
@@ -267,12 +273,14 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
             est = vision.process(StereoFrame(k, t, frame.left, frame.right))
             res = vision_result(est)
             p_dev = state[1:4].copy()
+            c0 = time.perf_counter()
             rec, inter, p_pad = scene_step.step(t, res["found"], res["p_cam"], res["confidence"],
                                                 p_dev if state[0] > 0 else None,
                                                 calibrated=T is not None)
+            world_ms = 1e3 * (time.perf_counter() - c0)
             servo.write_target(np.append(rec.pack(), offset))
-            now = servo.now()
-            log_scene_row(log, t, rec, inter, p_pad, p_dev, mount, 1e3 * (now - t))
+            now = servo.now()  # the record is published: the frame's age is now - t
+            log_scene_row(log, t, rec, inter, p_pad, p_dev, mount, world_ms)
             g = gt_index.get(round(float(frame.t), 6))
             tip_cam = np.full(3, np.nan) if g is None else np.asarray(gt["tip_cam"][g], float)
             tip_vis = False if g is None else bool(gt["tip_visible_left"][g] and gt["tip_visible_right"][g])
@@ -299,18 +307,13 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
     log.channels.update(res["channels"])
     # the device's limits as its driver reports them at start-up
     log.meta["force_limit_n"], log.meta["continuous_force_n"] = res["peak_force_n"], res["continuous_force_n"]
-    res["guard_counts"]["frame_dropped"] += len(servo_guard_count)
-    summary = write_outputs(out, log, stats={**res["stats"], "frames_dropped": len(servo_guard_count)},
+    res["guard_counts"]["frame_dropped"] += len(dropped_frames)
+    summary = write_outputs(out, log, stats={**res["stats"], "frames_dropped": len(dropped_frames)},
                             guard_counts=res["guard_counts"])
     summary.update(mode="live", device=device, source=source_name, servo_realtime=report.realtime,
                    servo_sched_fifo=report.sched_fifo, servo_steps=report.steps,
                    servo_step_us_median=report.step_us_median, servo_lateness=report.lateness,
-                   frame_to_target_ms_median=float(np.median(log.channel("scene").arrays()["world_ms"]))
-                   if len(log.channel("scene")) else None)
-    import json
-
-    from vishap._core.output import to_jsonable
-
+                   frame_to_target_ms_median=_frame_to_target_ms(log.channel("vision").arrays()))
     summary = to_jsonable(summary)
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary

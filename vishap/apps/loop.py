@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from vishap._core.pose import transform_points
+from vishap.apps.assemble import vision_result
 from vishap.apps.config import DemoConfig
 from vishap.apps.log import SignalLog, write_frame_png
 
@@ -112,8 +113,6 @@ class Demo:
             c2 = time.perf_counter()
             est = st.vision.process(st.StereoFrame(k, t, pair.left, pair.right))
             self.wall["vision"] += time.perf_counter() - c2
-            from vishap.apps.assemble import vision_result
-
             res = vision_result(est)
             if self._fault("nan", t) and res["found"]:
                 res["p_cam"] = np.full(3, np.nan)
