@@ -144,7 +144,7 @@ class ServoCycle:
     """
 
     def __init__(self, step: ServoStep, *, scene_object, log, finger: Finger | None = None,
-                 half_size_m: float = 0.02, tactile=None, mount_offset=(0.0, 0.0, 0.0)):
+                 half_size_m: float = 0.02, tactile=None):
         self.step = step
         self.obj = scene_object
         self.n = np.asarray(scene_object.normal, float)
