@@ -27,8 +27,10 @@ def test_live_takes_the_source_specs_of_vishap_track(tmp_path):
     (folder / "rig.yaml").write_text("x")
     spec, rig, calib, device = check_live(cameras=str(folder), rig=None, calib=None, device=None)
     assert spec == str(folder) and rig == folder / "rig.yaml" and calib is None and device == "sim"
-    with pytest.raises(DeviceError, match="--calib is needed with a real device"):
+    with pytest.raises(DeviceError, match="--calib is needed for cameras, videos or a real device"):
         check_live(cameras=str(folder), rig=None, calib=None, device="vishap.robot.plant:MujocoPlant")
+    with pytest.raises(DeviceError, match="--calib is needed"):  # real cameras: no simulated calibration
+        check_live(cameras="cam:0,1", rig=None, calib=None, device="sim")
 
 
 def test_live_servo_cycle_runs_a_driver_named_module_class():

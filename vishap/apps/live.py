@@ -5,7 +5,9 @@
 such as a ``vishap synth`` output; bare indices ``0,1`` still mean cameras. ``--device sim`` runs the
 MuJoCo PHANToM behind it, its finger pad pressed by the recording's ground-truth finger where the
 source has one (``gt.npz``) and by the tracked finger otherwise; ``--device module:Class`` loads a
-driver. Without ``--calib`` the simulated camera-to-robot calibration runs first, as in the batch demo.
+driver. Without ``--calib`` (a recorded synthetic folder on the ``sim`` device) the simulated
+camera-to-robot calibration runs first, as in the batch demo; cameras, videos and real devices need
+a calibration file.
 
 Before anything starts, every piece the run needs is checked and whatever is missing is reported in
 one error: each camera that cannot be opened, the source, the rig and calibration files, the driver.
@@ -54,7 +56,8 @@ def check_cameras(indices: list[int]) -> list[str]:
 def check_live(*, cameras: str, rig: str | None, calib: str | None, device: str | None):
     """Collect every missing piece; return ``(source spec, rig path or None, calib path or None, device spec)``.
 
-    A recorded folder brings its own rig; ``calib`` None means "calibrate in simulation" (``sim`` only).
+    A recorded folder brings its own rig; ``calib`` None means "calibrate in simulation" (a recorded
+    synthetic folder on the ``sim`` device only).
     """
     problems = []
     spec = source_spec(cameras)
@@ -74,9 +77,10 @@ def check_live(*, cameras: str, rig: str | None, calib: str | None, device: str 
     device = device or "sim"
     if calib is not None and not Path(calib).is_file():
         problems.append(f"camera-robot calibration {calib} not found (make it with 'vishap calibrate robot')")
-    elif calib is None and device != "sim":
-        problems.append("camera-robot calibration: --calib is needed with a real device "
-                        "(the simulated calibration only calibrates the simulated device)")
+    elif calib is None and (device != "sim" or folder is None or not folder.is_dir()):
+        problems.append("camera-robot calibration: --calib is needed for cameras, videos or a real device "
+                        "(the simulated calibration calibrates only the simulated cameras and device of a "
+                        "recorded synthetic folder; make one with 'vishap calibrate robot')")
     if device != "sim":
         mod, sep, cls = device.partition(":")
         if not sep:
