@@ -4,11 +4,9 @@ import json
 import numpy as np
 import pytest
 
-pytest.importorskip("vishap.sim.renderer", reason="the synthetic renderer is not installed")
-
-from vishap.apps import DemoConfig, run_demo  # noqa: E402
-from vishap.apps.log import load_log  # noqa: E402
-from vishap.apps.replay import replay  # noqa: E402
+from vishap.apps import DemoConfig, run_demo
+from vishap.apps.log import load_log, read_frame_png, write_frame_png
+from vishap.apps.replay import replay
 
 FAULTS = [
     {"kind": "finger_lost", "t_start": 0.80, "t_end": 1.10},
@@ -96,25 +94,84 @@ def test_replay_reproduces_vision_world_and_tactile(run, tmp_path):
     assert main(["replay", str(out / "log.npz"), "--out", str(tmp_path / "cli")]) == 0
 
 
-def test_live_loop_on_the_recorded_frames(run, tmp_path):
-    """The live loop (servo in its own process, mailboxes) on the demo's frames played back at 30 Hz."""
+def test_replay_detects_a_log_that_differs_from_what_the_core_computes(run, tmp_path):
+    """Replay compares its re-run with the demo's real log: one changed force-law sample, one changed
+    world target or one changed pixel must each make it report a difference."""
+    out, _, _, _ = run
+    with np.load(out / "log.npz", allow_pickle=False) as z:
+        arrays = {k: z[k].copy() for k in z.files}
+    law = np.flatnonzero(np.any(arrays["servo/F_law"] != 0, axis=1))
+    assert law.size, "the demo rendered no force law"
+
+    def tampered(name, edit):
+        d = tmp_path / name
+        d.mkdir()
+        (d / "frames").symlink_to(out / "frames", target_is_directory=True)
+        a = {k: v.copy() for k, v in arrays.items()}
+        edit(a)
+        np.savez_compressed(d / "log.npz", **a)
+        return replay(d)
+
+    def law_edit(a):
+        a["servo/F_law"][law[len(law) // 2], 2] += 1e-9
+
+    def world_edit(a):
+        i = int(np.flatnonzero(np.all(np.isfinite(a["scene/X_d"]), axis=1))[-1])
+        a["scene/X_d"][i, 0] += 1e-9
+
+    rep = tampered("law", law_edit)
+    assert not rep["identical"] and rep["world"]["F_law"] > 0 and rep["vision"]["p_cam"] == 0.0
+    rep = tampered("world", world_edit)
+    assert not rep["identical"] and rep["world"]["X_d"] > 0
+    # a changed frame changes what vision finds
+    frames = tmp_path / "pix"
+    frames.mkdir()
+    import shutil
+
+    shutil.copytree(out / "frames", frames / "frames")
+    shutil.copy(out / "log.npz", frames / "log.npz")
+    k = int(np.flatnonzero(arrays["vision/found"])[len(np.flatnonzero(arrays["vision/found"])) // 2])
+    img = read_frame_png(frames / "frames", "left", k)
+    img[:] = img[:, ::-1]  # the left view mirrored: the tip moves
+    write_frame_png(frames / "frames", "left", k, img)
+    rep = replay(frames)
+    assert not rep["identical"] and rep["vision"]["uv_left"] > 1.0
+
+
+def test_live_loop_renders_the_wall_law_on_the_recorded_frames(run, tmp_path):
+    """Live mode (servo cycle in its own process, mailboxes) on the demo's frames played back at 30 Hz,
+    the simulated device pressed by the recording's finger: the wall's law must be rendered."""
+    from vishap.apps.config import DemoConfig
     from vishap.apps.live_loop import run_live_loop
     from vishap.apps.log import read_frame_png
     from vishap.apps.replay import _rig_from_string
     from vishap.vision.capture import ArraySource
 
     out, _, meta, ch = run
-    t = ch["vision"]["t"][:45]
-    pairs = [(float(ti), read_frame_png(out / "frames", "left", k), read_frame_png(out / "frames", "right", k))
-             for k, ti in enumerate(t)]
-    summary = run_live_loop("wall", out=tmp_path, source=ArraySource(pairs), rig=_rig_from_string(meta["rig"]),
-                            T_robot_cam=np.asarray(meta["T_robot_cam_est"]), device_path="vishap.robot.plant:MujocoPlant",
-                            duration_s=10.0, realtime=False)
-    assert summary["frames"] == 45 and summary["servo_steps"] > 0
+    v, s = ch["vision"], ch["servo"]
+    n = 75  # through the first press (touch at 1.58 s)
+    pairs = [(float(t), read_frame_png(out / "frames", "left", k), read_frame_png(out / "frames", "right", k))
+             for k, t in enumerate(v["t"][:n])]
+    ticks = np.round(v["t"][:n] * 1000).astype(int)
+    gt = {"t": v["t"][:n], "tip_robot": v["tip_robot_true"][:n], "tip_cam": v["tip_cam_true"][:n],
+          "finger_velocity_robot": s["finger_velocity"][ticks], "finger_dir_robot": np.tile([-0.766, 0.0, -0.643], (n, 1)),
+          "tip_visible_left": v["tip_visible"][:n], "tip_visible_right": v["tip_visible"][:n],
+          "hand_visible": v["hand_visible"][:n], "T_robot_cam": meta["T_robot_cam_true"]}
+    cfg = DemoConfig(scene="wall", seed=1, video=False, save_frames=False)
+    summary = run_live_loop(cfg, out=tmp_path, source=ArraySource(pairs), rig=_rig_from_string(meta["rig"]),
+                            T_robot_cam=np.asarray(meta["T_robot_cam_est"]), gt=gt, device="sim")
     from vishap.apps.log import load_log as _load
 
-    live = _load(tmp_path)[1]["frames"]
-    assert np.all(np.diff(live["t"]) > 0)  # the servo's clock runs (frames are stamped with it)
-    assert summary["detection_rate"] > 0.3
-    assert sum(summary["actions"].values()) == 45
-    assert (tmp_path / "log.npz").is_file() and (tmp_path / "summary.json").is_file()
+    lm, lch = _load(tmp_path)
+    assert lm["mode"] == "live" and summary["frames"] == n and summary["servo_steps"] > 0
+    assert np.all(np.diff(lch["vision"]["t"]) > 0)  # the servo's clock runs (frames are stamped with it)
+    ls = lch["servo"]
+    pressed = ls["in_contact"].astype(bool) & (ls["device_depth"] > 0.001)
+    assert pressed.sum() > 20, "the simulated finger never pressed the device"
+    # while pressed in, the wall's law acts along the normal (800 N/m · depth, within the device's limit)
+    assert np.all(ls["law_active"][pressed])
+    assert np.allclose(ls["F_law"][pressed, 2], np.minimum(800.0 * ls["device_depth"][pressed], 8.5), rtol=0.05, atol=0.05)
+    assert len(lch["tactile"]["t"]) == len(ls["t"]) and np.any(lch["tactile"]["state"] > 0)  # the sleeve ran
+    for key in ("force_depth_r2", "tip3d_rms_mm", "fault_events", "reaction_misses"):
+        assert key in summary, key
+    assert (tmp_path / "force_depth.png").is_file() and (tmp_path / "timeline.png").is_file()

@@ -43,3 +43,20 @@ def test_linear_fit_and_force_depth():
     _, _, r2n = linear_fit(d, 800 * d + rng.normal(0, 0.5, d.size))
     assert r2n < 0.9
     assert np.isnan(linear_fit([1, 2], [1, 2])[2])
+
+
+def test_reaction_misses_counts_ticks_that_tracked_a_bad_record():
+    """Computed from the logged records, not by the guard: a guard that tracked a NaN, uncalibrated,
+    stale or unconfident record (or one the log never saw) is caught."""
+    from vishap.apps.summary import reaction_misses
+
+    meta = {"config": {"stale_after_s": 0.15}}
+    scene = {"seq": np.array([1, 2, 3, 4]), "X_d": np.array([[0.2, 0, -0.15], [np.nan, 0, -0.15], [0.2, 0, -0.15], [0.2, 0, -0.15]]),
+             "calibrated": np.array([True, True, False, True]), "t_sample": np.array([0.0, 0.1, 0.2, 0.3]),
+             "confidence": np.array([0.9, 0.9, 0.9, 0.1])}
+    t = np.array([0.01, 0.11, 0.21, 0.31, 0.50, 0.51])
+    servo = {"t": t, "record_seq": np.array([1, 2, 3, 4, 1, 9]), "guard": np.zeros(6, int)}
+    # tracked: fine, NaN, uncalibrated, unconfident, 0.5 s stale, unknown record
+    assert reaction_misses(meta, {"scene": scene, "servo": servo}) == 5
+    servo["guard"] = np.array([0, 1, 2, 1, 1, 2])  # the guard held or retreated on every bad one
+    assert reaction_misses(meta, {"scene": scene, "servo": servo}) == 0

@@ -15,12 +15,21 @@ def test_version_and_help():
     assert "rig" in out.stdout
 
 
-def test_every_subcommand_has_help():
+def test_every_subcommand_and_option_is_described():
+    """Each subcommand has a help line in the top-level listing and each of its options a help text
+    that its own --help shows (an option added without one fails here)."""
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command")
-    assert sub.choices, "no subcommands registered"
+    listed = {a.dest: a.help for a in sub._choices_actions}
+    assert {"demo", "replay", "track", "bench"} <= set(sub.choices)
     for name, p in sub.choices.items():
-        assert p.format_help().strip(), name
+        assert listed.get(name), f"{name}: no help line in 'vishap --help'"
+        text = " ".join(p.format_help().split())
+        for action in p._actions:
+            if action.dest == "help" or not action.option_strings:
+                continue
+            assert action.help, f"{name} {action.option_strings[0]}: no help text"
+            assert action.option_strings[-1] in text, (name, action.option_strings)
 
 
 def test_rig_new_and_show(tmp_path, capsys):

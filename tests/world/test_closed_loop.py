@@ -66,16 +66,20 @@ def test_panel_switches_subject_and_goes_over_the_shelf():
         assert not r.through_object and r.touched
 
 
-def test_device_travels_on_stiffer_gains_and_renders_contact_on_the_contact_gains():
-    from vishap._core.errors import ConfigError
-    from vishap.world.closed_loop import CONTACT_GAINS, TRAVEL_GAINS, make_device
+def test_closed_loop_runs_the_systems_servo_step():
+    """The benchmark's device is the system's: gains from the gains file, the travel limiter, the guard."""
+    from vishap.robot.gains import load_gains
+    from vishap.world.closed_loop import make_device
 
     scene = load_scene("wall")
-    dev = make_device(scene)
-    assert dev[0].limits.max_stiffness_n_m == 8000.0  # the robot's wall-stiffness limit
-    assert (dev[1].gains.kp, dev[1].gains.kv) == TRAVEL_GAINS
-    with pytest.raises(ConfigError):
-        make_device(scene, gains=(6400.0, 8.0))  # outside the measured stable region
+    step = make_device(scene)
+    gains, _ = load_gains()
+    assert step.device.limits.max_stiffness_n_m == 8000.0  # the robot's wall-stiffness limit
+    assert (step.controller.gains.kp, step.controller.gains.kv) == (gains.kp, gains.kv)
     tr = _traj(scene, "wall", [0.01, 0.0, 0.04], 0.2)
-    r = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s), vision=CLEAN, device=dev, stop_after_contact_s=0.15)
-    assert r.in_place and (dev[1].gains.kp, dev[1].gains.kv) == CONTACT_GAINS  # pressed in: contact gains
+    r = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s), vision=CLEAN, step=step,
+                     stop_after_contact_s=0.15, record=True)
+    assert r.in_place
+    assert step.servo.travel is not None and step.servo.travel.ready  # the target went through the limiter
+    assert step.guard.counts["finger_lost"] == 0 and step.last_action == "track"
+    assert make_device(scene, travel=False).servo.travel is None

@@ -6,7 +6,7 @@ from vishap.world.modes import default_modes, load_modes
 from vishap.world.scene import available_scenes, load_scene
 
 WALL = """name: w
-passive_object: {shape: plate, size_m: [0.04, 0.04, 0.003], mass_kg: 0.012}
+passive_object: {shape: plate, size_m: [0.04, 0.04, 0.003], mass_kg: 0.012, mount_offset_m: [0.03, 0.0, 0.0]}
 objects:
   - {name: wall, kind: wall, mode: hard_wall, normal: [0, 0, 1], offset_m: -0.15,
      centre: [0.2, 0, -0.15], extent_m: [0.1, 0.1]}

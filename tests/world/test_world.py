@@ -66,12 +66,10 @@ def test_target_is_held_ahead_at_the_meeting_point():
     assert np.linalg.norm([it for t, it in res if t >= 0.3][0].X_d - end) > 0.01
 
 
-def test_button_target_is_its_centre_and_law_is_the_subjects():
+def test_button_target_is_its_centre():
     w = World(load_scene("panel"), predictor="none")
     it = w.update(0.0, [0.232, 0.045, -0.140])
     assert it.object_name == "key_b" and np.allclose(it.X_d, [0.230, 0.040, -0.150])
-    F = w.force_robot(np.array([0.23, 0.04, -0.151]), np.zeros(3))
-    assert F[2] == pytest.approx(500.0 * 0.001)
 
 
 def test_device_goes_over_the_shelf_never_through_it():
@@ -113,22 +111,6 @@ def test_predictors_follow_constant_velocity_and_missed_frames():
     assert tau is None and np.allclose(c, [0.2, 0.0, -0.15])
     c, tau = contact_point([0.2, 0.0, -0.151], [0.1, 0.0, -0.5], [0, 0, 1], -0.15, horizon_s=0.5)
     assert tau == 0.0 and np.allclose(c, [0.2, 0.0, -0.15])
-
-
-def test_contact_render_gates_the_law_and_the_object_gain():
-    scene = load_scene("wall")
-    w = World(scene, predictor="none", engage_m=0.0003)
-    far = w.update(0.0, [0.2, 0.0, -0.10])
-    assert w.contact_render(np.array([0.2, 0.0, -0.151]), None, far)[0] is None  # finger far: no law
-    near = w.update(0.1, [0.2, 0.0, -0.145])
-    F, lam, R = w.contact_render(np.array([0.2, 0.0, -0.1501]), np.zeros(3), near)
-    assert F[2] == pytest.approx(800.0 * 0.0001) and lam == (1.0, 1.0, 0.0)  # sagging: keep lateral servo
-    F, lam, R = w.contact_render(np.array([0.2, 0.0, -0.152]), np.zeros(3), near)
-    assert F[2] == pytest.approx(1.6) and lam == (0.0, 0.0, 0.0) and np.allclose(R, np.eye(3))  # pressed: slide
-    assert w.contact_render(np.array([0.2, 0.0, -0.149]), None, near)[0] is None  # above the surface
-    kb = World(load_scene("panel"), predictor="none")
-    it = kb.update(0.0, [0.23, 0.04, -0.149])
-    assert kb.contact_render(np.array([0.23, 0.04, -0.152]), None, it)[1] == (1.0, 1.0, 0.0)  # a key stays put
 
 
 def test_path_extrapolation_follows_a_bowed_reach_that_the_ray_misses():

@@ -1,27 +1,30 @@
-"""Build every stage of a batch demo from its :class:`DemoConfig` (see :mod:`vishap.apps.stages`).
+"""Build the parts of a run from its :class:`DemoConfig`: the core (scene step, servo cycle) and the
+simulated world around it (renderer, scripted finger) for a batch demo.
 
 The rig, the true camera placement and the renderer are the simulated world's; vision,
 registration (a calibration file, or the camera-robot calibration run in simulation on rendered
-marker images), world, device and tactile layer are the system's own stages — the demo never
-hands the system a ground-truth value.
+marker images), world, device and tactile layer are the system's own — the demo never hands the
+system a ground-truth value. Live mode builds the same core (:func:`make_world`,
+:func:`make_scene_step`, :func:`make_cycle`) around cameras or a recording and a device.
 """
 from __future__ import annotations
 
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
 from vishap._core.errors import CalibrationError
 from vishap._core.pose import invert
 from vishap.apps.config import DemoConfig
-from vishap.apps.stages import Stages, need
+from vishap.world.finger import TIP_RADIUS_M
 
-__all__ = ["build", "meta", "calibrate", "RIG_HFOV_DEG", "RIG_BASELINE_M"]
+__all__ = ["build", "meta", "calibrate", "make_world", "make_scene_step", "make_cycle", "vision_result",
+           "RIG_HFOV_DEG", "RIG_BASELINE_M", "TIP_RADIUS_M"]
 
 RIG_HFOV_DEG = 60.0
 RIG_BASELINE_M = 0.06
-STATE_CODES = {"none": 0, "concentrated": 1, "distributed": 2, "slip": 3}
 
 
 def make_rig(cfg: DemoConfig):
@@ -40,95 +43,101 @@ def calibrate(cfg: DemoConfig, rig, out: Path, *, poses: int = 12) -> tuple[np.n
     reachable box, its green marker is rendered, detected and triangulated, and the absolute
     orientation is solved, VisHap Eq. 3); the result is saved as ``OUT/camera_robot.yaml``.
     """
-    cr = need("vishap.registration.camera_robot", "registration (camera-robot file)")
+    from vishap.registration import camera_robot as cr
+
     if cfg.calib is not None:
         try:
             return cr.load(cfg.calib, rig=rig), {"source": str(cfg.calib)}
         except CalibrationError as exc:
             print(f"vishap demo: warning: calibration unavailable, the device will retreat: {exc}", file=sys.stderr)
             return None, {"source": str(cfg.calib), "error": str(exc)}
-    sim = need("vishap.registration.sim", "registration (simulated camera-robot calibration)")
+    from vishap.registration.sim import calibrate_sim
+
     rig_path = rig.save(out / "rig.yaml")
-    rec = sim.calibrate_sim(n_poses=poses, seed=cfg.seed, rig_path=rig_path, out=out / "camera_robot.yaml",
-                            scene=cfg.scene)
+    rec = calibrate_sim(n_poses=poses, seed=cfg.seed, rig_path=rig_path, out=out / "camera_robot.yaml", scene=cfg.scene)
     keep = ("poses", "poses_used", "per_axis_error_mm", "rms_mm", "rotation_error_deg", "translation_error_mm",
             "workspace_per_axis_error_mm", "reprojection_rms_px")
     return cr.load(out / "camera_robot.yaml", rig=rig), {"source": "simulation", **{k: rec.get(k) for k in keep}}
-
-
-def build(cfg: DemoConfig, out: Path) -> Stages:
-    sim_place = need("vishap.sim.camera_placement", "synthetic camera placement")
-    sim_state = need("vishap.sim.state", "synthetic frame state")
-    sim_render = need("vishap.sim.renderer", "synthetic renderer")
-    vision = need("vishap.vision.pipeline", "vision")
-    capture = need("vishap.vision.capture", "vision capture")
-    world_scene = need("vishap.world.scene", "world (scenes)")
-    kin = need("vishap.robot.kinematics", "robot kinematics")
-    mjcf = need("vishap.robot.mjcf", "robot (model)")
-    runtime = need("vishap.runtime", "runtime")
-
-    rig = make_rig(cfg)
-    T_true = sim_place.default_T_robot_cam(baseline_m=RIG_BASELINE_M)
-    scene = world_scene.load_scene(cfg.scene)
-    obj = scene.objects[0]
-    po_spec = scene.passive_object
-    po_render = sim_state.PassiveObject(shape=po_spec.shape, size_m=tuple(po_spec.size_m))
-    mount = np.asarray(po_render.mount_offset_robot, float)
-    renderer = sim_render.StereoRenderer(rig, T_true, cfg.scene, seed=cfg.seed)
-    build_mod = need("vishap.robot.build", "robot (servo builder)")
-    shape = "sphere" if po_spec.shape == "sphere" else "plate"
-    size = (po_spec.size_m[0] / 2,) if shape == "sphere" else tuple(po_spec.size_m)
-    travel = None
-    if cfg.travel_speed_m_s is not None:
-        from vishap.robot.travel import TravelLimiter
-
-        travel = TravelLimiter(cfg.travel_speed_m_s, cfg.travel_accel_m_s2)
-    servo = build_mod.build_servo(mjcf.PassiveObject(shape, size, po_spec.mass_kg), substeps=cfg.substeps,
-                                  sensor=cfg.encoder, policy=cfg.servo_policy, travel=travel)
-    plant, controller = servo.device, servo.controller
-    T_est, calib_report = calibrate(cfg, rig, out)
-    world = make_world(cfg, scene, rig, T_est)
-    lim = plant.limits
-    lo = np.asarray(lim.workspace_min, float)
-    hi = np.asarray(lim.workspace_max, float)
-    centre = np.asarray(obj.centre, float)
-    n = np.asarray(obj.normal, float)
-    retreat = centre - cfg.retreat_m * n - mount
-    guard = runtime.TargetGuard(lo, hi, retreat, stale_after_s=cfg.stale_after_s, retreat_after_s=cfg.retreat_after_s)
-    tactile, tactile_step_state = _build_tactile(cfg, scene)
-
-    st = Stages(
-        cfg=cfg, rig=rig, T_true=T_true, T_cam_robot_true=invert(T_true), T_est=T_est, calib_report=calib_report,
-        renderer=renderer, vision=vision.VisionPipeline(rig), StereoFrame=capture.StereoFrame, controller=controller,
-        scene=scene, scene_object=obj, world=world, plant=plant, servo=servo, guard=guard,
-        mount_offset=mount, tip_radius_m=float(sim_state.TIP_RADIUS_M),
-        face_half_extent=(0.5 * float(po_spec.size_m[0]), 0.5 * float(po_spec.size_m[1])),
-        force_limit_n=float(lim.peak_force_n), tactile=tactile, kin=kin, po_render=po_render,
-    )
-    names = [o.name for o in scene.objects]
-    st.object_index = names.index
-    st.render = lambda t, *, tip_robot, finger_dir, flexion, hand_visible, q, ee: renderer.render(
-        sim_state.FrameState(t=t, tip_robot=tip_robot, finger_dir_robot=np.asarray(finger_dir, float),
-                             flexion=flexion, hand_visible=hand_visible, device_points_robot=kin.link_points(q),
-                             ee_robot=np.asarray(ee, float), passive_object=po_render))
-    st.vision_result = _vision_result
-    st.contact_sample = lambda t, pad, v_pad, F_on_finger, finger_dir=None: _contact_sample(
-        obj, t, pad, v_pad, F_on_finger, finger_dir)
-    st.pad_force = _pad_force(obj, st.face_half_extent)
-    st.tactile_state = tactile_step_state
-    st.overlay = lambda pair, row, dev, target, t, extra=(): _overlay(st, pair, row, dev, target, t, extra)
-    return st
 
 
 def make_world(cfg: DemoConfig, scene, rig, T_est):
     """The world with a Kalman finger predictor whose measurement noise matches the stereo model
     (from the calibrated camera position; 5 mm without a calibration) and whose latency is the
     vision latency plus half a scene period (the mean wait for the scene tick)."""
-    world_mod = need("vishap.world.world", "world")
-    pred = need("vishap.world.predictor", "world (predictor)")
+    from vishap.world.predictor import KalmanPredictor
+    from vishap.world.world import World
+
     noise = cfg.finger_noise_m or (0.005 if T_est is None else stereo_noise_m(rig, T_est, scene.objects[0].centre))
-    return world_mod.World(scene, predictor=pred.KalmanPredictor(meas_std_m=noise),
-                           latency_s=cfg.vision_latency_s + 0.5 / cfg.scene_hz, contact_model=cfg.contact_model)
+    return World(scene, predictor=KalmanPredictor(meas_std_m=noise),
+                 latency_s=cfg.vision_latency_s + 0.5 / cfg.scene_hz, contact_model=cfg.contact_model)
+
+
+def make_scene_step(world, T_est):
+    from vishap.runtime.core import SceneStep
+
+    return SceneStep(world, T_est, tip_radius_m=TIP_RADIUS_M, mount_offset=world.scene.passive_object.mount_offset_m)
+
+
+def make_cycle(cfg: DemoConfig, scene, log, *, device: str = "sim", finger=None, tactile: bool = True):
+    """The 1 kHz side of a run: the device (:func:`vishap.runtime.assembly.open_device`), its guarded
+    servo step and the tactile sleeve, as a :class:`~vishap.apps.cycle.ServoCycle` writing into ``log``."""
+    from vishap.apps.cycle import ServoCycle
+    from vishap.robot.travel import TravelLimiter
+    from vishap.runtime.assembly import make_servo_step, open_device
+
+    po = scene.passive_object
+    dev = (open_device("sim", passive_object=po.for_mujoco(), substeps=cfg.substeps, sensor=cfg.encoder)
+           if device == "sim" else open_device(device))
+    travel = None if cfg.travel_speed_m_s is None else TravelLimiter(cfg.travel_speed_m_s, cfg.travel_accel_m_s2)
+    step = make_servo_step(dev, scene, policy=cfg.servo_policy, travel=travel, retreat_m=cfg.retreat_m,
+                           stale_after_s=cfg.stale_after_s, retreat_after_s=cfg.retreat_after_s)
+    return ServoCycle(step, scene_object=scene.objects[0], log=log, finger=finger, half_size_m=po.half_size_m,
+                      tactile=make_tactile(cfg, scene) if tactile else None)
+
+
+def make_tactile(cfg: DemoConfig, scene):
+    """The tactile sleeve renderer for the scene's surface (attributes from the demo module)."""
+    from vishap.apps.demos import demo_module
+    from vishap.tactile.config import SurfaceAttributes
+    from vishap.tactile.renderer import TactileRenderer
+
+    return TactileRenderer(surface=SurfaceAttributes(**demo_module(cfg.scene).surface(scene)), seed=cfg.seed)
+
+
+def build(cfg: DemoConfig, out: Path, log) -> SimpleNamespace:
+    """Every part of a batch demo (renderer and scripted finger around the system's core)."""
+    from vishap.apps.cycle import ScriptedFinger
+    from vishap.apps.script import script_for
+    from vishap.robot import kinematics as kin
+    from vishap.sim.camera_placement import default_T_robot_cam
+    from vishap.sim.renderer import StereoRenderer
+    from vishap.sim.state import FrameState
+    from vishap.vision.capture import StereoFrame
+    from vishap.vision.pipeline import VisionPipeline
+    from vishap.world.scene import load_scene
+
+    rig = make_rig(cfg)
+    T_true = default_T_robot_cam(baseline_m=RIG_BASELINE_M)
+    scene = load_scene(cfg.scene)
+    po_render = scene.passive_object.for_renderer()
+    renderer = StereoRenderer(rig, T_true, cfg.scene, seed=cfg.seed)
+    script = script_for(cfg.scene, hidden_s=cfg.background_frames / cfg.camera_hz)
+    cycle = make_cycle(cfg, scene, log, finger=ScriptedFinger(script))
+    T_est, calib_report = calibrate(cfg, rig, out)
+    world = make_world(cfg, scene, rig, T_est)
+    st = SimpleNamespace(
+        cfg=cfg, rig=rig, T_true=T_true, T_cam_robot_true=invert(T_true), T_est=T_est, calib_report=calib_report,
+        renderer=renderer, vision=VisionPipeline(rig), StereoFrame=StereoFrame, scene=scene,
+        scene_object=scene.objects[0], world=world, scene_step=make_scene_step(world, T_est), cycle=cycle,
+        plant=cycle.step.device, guard=cycle.step.guard, script=script, kin=kin, po_render=po_render,
+        mount_offset=np.asarray(scene.passive_object.mount_offset_m, float), tip_radius_m=TIP_RADIUS_M,
+        force_limit_n=float(cycle.step.device.limits.peak_force_n))
+    st.render = lambda t, *, tip_robot, finger_dir, flexion, hand_visible, q, ee: renderer.render(
+        FrameState(t=t, tip_robot=tip_robot, finger_dir_robot=np.asarray(finger_dir, float), flexion=flexion,
+                   hand_visible=hand_visible, device_points_robot=kin.link_points(q), ee_robot=np.asarray(ee, float),
+                   passive_object=po_render))
+    st.overlay = lambda pair, row, dev, target, t, extra=(): _overlay(st, pair, row, dev, target, t, extra)
+    return st
 
 
 def stereo_noise_m(rig, T_robot_cam, p_robot) -> float:
@@ -145,7 +154,7 @@ def stereo_noise_m(rig, T_robot_cam, p_robot) -> float:
     return float(np.sqrt((2 * lateral ** 2 + depth ** 2) / 3.0))
 
 
-def _vision_result(est) -> dict:
+def vision_result(est) -> dict:
     found = bool(est.found and est.p_cam is not None)
     return {
         "found": found,
@@ -157,59 +166,12 @@ def _vision_result(est) -> dict:
     }
 
 
-def _contact_sample(obj, t, pad, v_pad, F_on_finger, finger_dir_robot=None):
-    """The tactile layer's contact sample in the object frame; with the finger's pointing direction
-    (robot frame) the sleeve's patch follows the finger's pitch (fingertip press or flat pad)."""
-    from vishap.tactile.contact import ContactSample
-
-    p_obj = obj.local(pad)
-    v_obj = obj.R.T @ np.asarray(v_pad, float)
-    fn = float(np.asarray(F_on_finger, float) @ np.asarray(obj.normal, float))
-    d_obj = None if finger_dir_robot is None else obj.R.T @ np.asarray(finger_dir_robot, float)
-    return ContactSample(t=t, position=p_obj, normal_force_n=max(0.0, fn), velocity=v_obj, in_contact=fn > 0.0,
-                         finger_dir=d_obj)
-
-
-def _pad_force(obj, half_extent):
-    """The finger pad's force on the passive object: the world's compliant pad (normal and tangential
-    spring-dampers with slip) when available."""
-    try:
-        from vishap.world.closed_loop import FingerPad
-    except ImportError:
-        from vishap.apps.contact import FingerPad as _Frictionless
-
-        pad = _Frictionless()
-        n = np.asarray(obj.normal, float)
-        return lambda p_f, v_f, p_dev, v_dev: -pad.evaluate(p_f, v_f, p_dev, v_dev, n, half_extent).force_on_finger
-    pad = FingerPad()
-    n = np.asarray(obj.normal, float)
-    half = min(half_extent)
-    return lambda p_f, v_f, p_dev, v_dev: pad.force_on_device(p_f, v_f, p_dev, v_dev, n, half)
-
-
-def _build_tactile(cfg: DemoConfig, scene):
-    """The tactile sleeve renderer for the scene's surface (attributes from the demo module)."""
-    from vishap.apps.demos import demo_module
-
-    tr = need("vishap.tactile.renderer", "tactile")
-    tcfg = need("vishap.tactile.config", "tactile (config)")
-    surface = tcfg.SurfaceAttributes(**demo_module(cfg.scene).surface(scene))
-    renderer = tr.TactileRenderer(surface=surface, seed=cfg.seed)
-
-    def state(out) -> int:
-        s = getattr(out, "state", None)
-        s = getattr(s, "value", s)
-        return STATE_CODES.get(str(s), 0) if s is not None else 0
-
-    return renderer, state
-
-
 def _overlay(st, pair, row, dev, target, t, extra=()):
     from vishap.apps.overlay import draw_overlay, object_outline_robot
 
     T_cam_robot = invert(st.T_est) if st.T_est is not None else st.T_cam_robot_true
     outlines = [object_outline_robot(o.centre, o.normal, 2.0 * np.asarray(o.half[:2], float)) for o in st.scene.objects]
-    X = target["X_d"]
+    X = np.asarray(target.X_ee, float)
     lines = [f"{st.cfg.scene}  t={t:6.3f}s  frame {row['index']}",
              "tip: " + ("found" if row["found"] else ("frame DROPPED" if row["dropped"] else "not found")), *extra]
     return draw_overlay(pair.left, pair.right, rig=st.rig, T_cam_robot=T_cam_robot,
@@ -219,26 +181,31 @@ def _overlay(st, pair, row, dev, target, t, extra=()):
                         target_robot=None if not np.all(np.isfinite(X)) else X + st.mount_offset, lines=lines)
 
 
-def meta(cfg: DemoConfig, st: Stages) -> dict:
+def meta(cfg: DemoConfig, *, rig, T_true, T_est, calib_report, scene, force_limit_n: float, continuous_force_n: float,
+         mode: str = "batch", source: str | None = None, device: str = "sim") -> dict:
+    """The log's metadata: one schema for batch and live runs (``mode``)."""
     import vishap
 
     from vishap.apps.log import code_version
 
+    obj = scene.objects[0]
     return {
         "format": "vishap.demo_log/1",
+        "mode": mode,
+        "source": source,
+        "device": device,
         "version": vishap.__version__,
         "config": cfg.model_dump(),
-        "rig": st.rig.to_filestorage_string(),
-        "T_robot_cam_true": st.T_true,
-        "T_robot_cam_est": st.T_est,
-        "calibration": st.calib_report,
-        "mount_offset": st.mount_offset,
-        "tip_radius_m": st.tip_radius_m,
-        "force_limit_n": st.force_limit_n,
-        "continuous_force_n": float(st.plant.limits.continuous_force_n),
-        "object": {"name": st.scene_object.name, "normal": np.asarray(st.scene_object.normal, float),
-                   "centre": np.asarray(st.scene_object.centre, float),
-                   "target": getattr(st.scene_object.mode, "target", "projection")},
+        "rig": rig.to_filestorage_string(),
+        "T_robot_cam_true": T_true,
+        "T_robot_cam_est": T_est,
+        "calibration": calib_report,
+        "mount_offset": np.asarray(scene.passive_object.mount_offset_m, float),
+        "tip_radius_m": TIP_RADIUS_M,
+        "force_limit_n": force_limit_n,
+        "continuous_force_n": continuous_force_n,
+        "object": {"name": obj.name, "normal": np.asarray(obj.normal, float), "centre": np.asarray(obj.centre, float),
+                   "target": getattr(obj.mode, "target", "projection")},
         "python": sys.version.split()[0],
         "code": code_version(),
     }

@@ -1,138 +1,319 @@
-"""The live loop: cameras → vision → registration → world in this process, the guarded 1 kHz servo
-in its own real-time process (:class:`vishap.runtime.live.LiveServo`), joined by shared-memory
-latest-value mailboxes (issue 9 parts 1 and 3; VisHap §2).
+"""The live loop: the demo's core on a real clock (issue 9 parts 1 and 3; VisHap §2).
 
-Frames never cross into the servo process: only the 6-value target record
-``[x, y, z, made_at, confidence, calibrated]`` does (:mod:`vishap.runtime.device_servo`). Times are
-on the servo's clock (:meth:`LiveServo.now`): a target's ``made_at`` is the servo time at which its frame was grabbed, so
-the guard's staleness test measures the whole camera → target age. A non-camera source (a recorded
-folder or video) is paced at its own time stamps, so the same loop replays a recording in real time.
+This process: source frames → vision → the core's scene step (:class:`~vishap.runtime.core.SceneStep`,
+the same as the batch demo's) → the target record, published through a shared-memory latest-value
+mailbox. The servo process (:class:`vishap.runtime.live.LiveServo`, SCHED_FIFO where permitted):
+the same :class:`~vishap.apps.cycle.ServoCycle` as the batch demo — the finger on a simulated
+device, guard → force law and Λ → controller → device, and the tactile sleeve — at 1 kHz on the
+newest record. Frames never cross into the servo process, only the record does.
+
+Times are on the servo's clock (:meth:`LiveServo.now`): a record's ``made_at`` is the servo time at
+which its frame was grabbed, so the guard's staleness test measures the whole camera → target age.
+A recorded source (a folder or video) is paced at its own time stamps, so the same loop replays a
+recording in real time. Both processes write into one log with the batch demo's schema
+(``vision`` and ``scene`` here, ``servo`` and ``tactile`` there), so summary, plots and replay read it.
 """
 from __future__ import annotations
 
 import functools
-import importlib
 import json
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
-from vishap.apps.log import SignalLog
-from vishap.bench._common import to_jsonable
+from vishap._core.output import to_jsonable
+from vishap.apps.config import DemoConfig
+from vishap.apps.cycle import Finger
+from vishap.apps.log import SignalLog, write_frame_png
 
-__all__ = ["run_live_loop", "make_guarded_servo"]
+__all__ = ["run_live_loop", "LiveCycle", "recorded_finger"]
 
-TIP_RADIUS_M = 0.008  # the fingertip cap radius the synthetic hand and the world assume (m)
-
-
-def make_guarded_servo(device_path: str, passive_object: tuple | None = None):
-    """Build the device (``"module:Class"``), its controller and the guarded servo (runs in the child)."""
-    from vishap.robot.controller import Controller
-    from vishap.robot.travel import TravelLimiter
-    from vishap.runtime.device_servo import DeviceServo
-
-    mod, cls = device_path.split(":")
-    device_cls = getattr(importlib.import_module(mod), cls)
-    if passive_object is not None:
-        from vishap.robot.mjcf import PassiveObject
-
-        device = device_cls(passive_object=PassiveObject(*passive_object))
-    else:
-        device = device_cls()
-    return DeviceServo(device, Controller(device.params, limits=device.limits), travel=TravelLimiter())
+#: the servo process's state record: [t, device contact point (3), guard action code, record seq]
+STATE_SIZE = 6
 
 
-def run_live_loop(scene: str, *, out, source, rig, T_robot_cam, device_path: str, duration_s: float,
-                  mount_offset=(0.030, 0.0, 0.0), realtime: bool = True, pace: bool | None = None) -> dict:
-    """Run until ``duration_s`` or the source ends; write ``log.npz`` and ``summary.json`` into ``out``."""
-    from vishap.runtime.device_servo import STATE_SIZE, TARGET_SIZE, target_record
+class LiveCycle:
+    """The servo process's object: unpacks the mailbox and runs the shared :class:`ServoCycle`.
+
+    The mailbox holds the packed :class:`TargetRecord` followed by one transport field: the offset
+    from the servo's clock to a recorded source's own time (for a recorded ground-truth finger).
+    """
+
+    def __init__(self, cfg: dict, device: str, finger: tuple | None):
+        from vishap.apps.assemble import make_cycle
+        from vishap.apps.cycle import RecordedFinger, TrackedFinger
+        from vishap.runtime.core import RECORD_SIZE, TargetRecord
+        from vishap.world.scene import load_scene
+
+        self.cfg = DemoConfig.model_validate(cfg)
+        scene = load_scene(self.cfg.scene)
+        self.log = SignalLog()
+        if device != "sim":
+            fing = None
+        elif finger is None:
+            fing = TrackedFinger()
+        else:
+            fing = RecordedFinger(*finger)
+        self.cycle = make_cycle(self.cfg, scene, self.log, device=device, finger=fing)
+        self.finger = fing
+        self._n = RECORD_SIZE
+        self._unpack = TargetRecord.unpack
+        self._rec = TargetRecord()
+        self._out = np.zeros(STATE_SIZE)
+
+    def step(self, t: float, target) -> np.ndarray:
+        if target[0] != self._rec.seq:  # a new record (seq 0: none yet)
+            self._rec = self._unpack(target[: self._n])
+            if self.finger is not None and hasattr(self.finger, "offset") and np.isfinite(target[self._n]):
+                self.finger.offset = float(target[self._n])
+        self.cycle.servo(t, self._rec)
+        self.cycle.tactile(t)
+        from vishap.runtime.core import GUARD_CODES
+
+        out = self._out
+        _, p_dev, _, _ = self.cycle.last
+        out[0] = t
+        out[1:4] = p_dev
+        out[4] = GUARD_CODES[self.cycle.step.last_action]
+        out[5] = self._rec.seq
+        return out
+
+    def finish(self) -> dict:
+        c = self.cycle
+        lim = c.step.device.limits
+        return {"channels": self.log.channels, "stats": dict(c.stats), "guard_counts": dict(c.step.guard.counts),
+                "wall": dict(c.wall), "peak_force_n": float(lim.peak_force_n),
+                "continuous_force_n": float(lim.continuous_force_n)}
+
+
+def _make_live_cycle(cfg: dict, device: str, finger):
+    return LiveCycle(cfg, device, finger)
+
+
+def recorded_finger(gt: dict, normal, tip_radius_m: float):
+    """``(t, pad point, velocity, finger direction)`` of a recording's ground truth (``gt.npz``)."""
+    n = np.asarray(normal, float)
+    pad = np.asarray(gt["tip_robot"], float) - tip_radius_m * n
+    d = np.asarray(gt["finger_dir_robot"], float)
+    return (np.asarray(gt["t"], float), pad, np.asarray(gt["finger_velocity_robot"], float),
+            tuple(np.median(d, axis=0)) if d.ndim == 2 and len(d) else None)
+
+
+class _Prefetcher:
+    """A recording's frames read ahead in a thread (image decoding releases the GIL), so that reading
+    files costs the loop no frame period; :meth:`wait_filled` gives a slow reader a head start."""
+
+    def __init__(self, source, depth: int):
+        import collections
+        import threading
+
+        self.depth = max(2, int(depth))
+        self.frames = collections.deque()
+        self.cond = threading.Condition()
+        self.done = False
+        self.error: BaseException | None = None
+        self._stop = False
+        self.thread = threading.Thread(target=self._read, args=(source,), daemon=True)
+        self.thread.start()
+
+    def _read(self, source) -> None:
+        try:
+            for f in source:
+                with self.cond:
+                    while len(self.frames) >= self.depth and not self._stop:
+                        self.cond.wait(0.1)
+                    if self._stop:
+                        return
+                    self.frames.append(f)
+                    self.cond.notify_all()
+        except BaseException as exc:  # handed to the loop, which raises it
+            self.error = exc
+        finally:
+            with self.cond:
+                self.done = True
+                self.cond.notify_all()
+
+    def wait_filled(self) -> None:
+        with self.cond:
+            while len(self.frames) < self.depth and not self.done:
+                self.cond.wait(0.1)
+
+    def pop(self):
+        """The next frame (blocks); None at the end."""
+        with self.cond:
+            while not self.frames and not self.done:
+                self.cond.wait(0.1)
+            if self.error is not None:
+                raise self.error
+            if not self.frames:
+                return None
+            f = self.frames.popleft()
+            self.cond.notify_all()
+            return f
+
+    def peek(self):
+        with self.cond:
+            return self.frames[0] if self.frames else None
+
+    def close(self) -> None:
+        with self.cond:
+            self._stop = True
+            self.cond.notify_all()
+        self.thread.join(timeout=5)
+
+
+def _frames(source, pace: bool, camera_hz: float, anchor: list):
+    """``(frame, late)`` pairs. A camera's frames come as its driver delivers them (it keeps the newest).
+    A recording is paced at its own time stamps after a head start of 2 s of frames read ahead; a frame
+    is ``late`` (to be dropped) when the next one is already due — latest-value semantics, as a camera
+    driver drops the frames nobody read. ``anchor`` = [recording time, monotonic time] of the
+    recording's clock: set by the first frame, and reset by the caller when that frame is through."""
+    if not pace:
+        for f in source:
+            yield f, False
+        return
+    pf = _Prefetcher(source, depth=int(2.0 * camera_hz))
+    try:
+        pf.wait_filled()
+        while (f := pf.pop()) is not None:
+            if anchor[0] is None:
+                anchor[:] = [f.t, time.monotonic()]
+            t_first, wall0 = anchor
+            wait = wall0 + (f.t - t_first) - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)
+            nxt = pf.peek()
+            yield f, nxt is not None and time.monotonic() >= wall0 + (nxt.t - t_first)
+    finally:
+        pf.close()
+
+
+def _frame_to_target_ms(vis: dict) -> float | None:
+    """Median age of a frame when its target record was published (servo clock), processed frames only."""
+    ok = ~vis["dropped"].astype(bool) if len(vis.get("t", [])) else np.zeros(0, bool)
+    return float(np.median(1e3 * (vis["available_at"][ok] - vis["t"][ok]))) if ok.any() else None
+
+
+def _dropped_row(t, k, mount, state) -> dict:
+    nan2, nan3 = np.full(2, np.nan), np.full(3, np.nan)
+    return {"t": t, "index": k, "dropped": True, "found": False, "p_cam": nan3, "uv_left": nan2, "uv_right": nan2,
+            "confidence": 0.0, "vision_ms": np.nan, "available_at": np.nan, "tip_cam_true": nan3,
+            "tip_robot_true": nan3, "tip_visible": False, "hand_visible": False, "render_ms": np.nan,
+            "device_q": nan3, "device_ee": state[1:4] - mount, "segment_ms": np.nan, "detect_ms": np.nan,
+            "stereo_ms": np.nan}
+
+
+def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_report: dict | None = None,
+                  device: str = "sim", gt: dict | None = None, duration_s: float = 30.0, realtime: bool = True,
+                  pace: bool | None = None, source_name: str | None = None) -> dict:
+    """Run until ``duration_s`` or the source ends; write the demo's outputs into ``out``.
+
+    ``gt`` (a recording's ground truth) drives the simulated finger when ``device == "sim"`` and gives
+    the vision-accuracy figures; the system itself never reads it.
+    """
+    from vishap.apps.assemble import TIP_RADIUS_M, make_scene_step, make_world, meta, vision_result
+    from vishap.apps.loop import _stage_ms, log_scene_row
+    from vishap.apps.summary import write_outputs
+    from vishap.runtime.core import RECORD_SIZE
     from vishap.runtime.live import LiveServo
     from vishap.vision.capture import CameraSource, StereoFrame
     from vishap.vision.pipeline import VisionPipeline
     from vishap.world.scene import load_scene
-    from vishap.world.world import World
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    sc = load_scene(scene)
-    n = np.asarray(sc.objects[0].normal, float)
-    mount = np.asarray(mount_offset, float)
-    T = np.asarray(T_robot_cam, float)
-    po = sc.passive_object
-    po_args = ("plate", tuple(po.size_m), po.mass_kg) if po.shape != "sphere" else ("sphere", (po.size_m[0] / 2,), po.mass_kg)
-    servo = LiveServo(functools.partial(make_guarded_servo, device_path, po_args if "plant" in device_path else None),
-                      target_size=TARGET_SIZE, state_size=STATE_SIZE, realtime=realtime)
+    scene = load_scene(cfg.scene)
+    T = None if T_robot_cam is None else np.asarray(T_robot_cam, float)
+    finger = None
+    if gt is not None and device == "sim":
+        finger = recorded_finger(gt, scene.objects[0].normal, TIP_RADIUS_M)
+    servo = LiveServo(functools.partial(_make_live_cycle, cfg.model_dump(), device, finger),
+                      target_size=RECORD_SIZE + 1, state_size=STATE_SIZE, realtime=realtime)
     vision = VisionPipeline(rig)
-    world = None
+    world = make_world(cfg, scene, rig, T)
+    scene_step = make_scene_step(world, T)
+    mount = scene_step.mount
     pace = (not isinstance(source, CameraSource)) if pace is None else pace
-    log = SignalLog({"format": "vishap.live_log/1", "scene": scene, "T_robot_cam": T, "mount_offset": mount})
-    ch = log.channel("frames")
+    log = SignalLog(meta(cfg, rig=rig, T_true=None if gt is None else gt.get("T_robot_cam"), T_est=T,
+                         calib_report=calib_report or {}, scene=scene, force_limit_n=float("nan"),
+                         continuous_force_n=float("nan"), mode="live", source=source_name, device=device))
+    if finger is not None and finger[3] is not None:
+        log.meta["sleeve_finger_dir"] = finger[3]
+    else:
+        log.meta["sleeve_finger_dir"] = Finger.finger_dir if device == "sim" else None
+    gt_index = {}
+    if gt is not None:
+        gt_index = {round(float(t), 6): i for i, t in enumerate(gt["t"])}
+    vis_ch = log.channel("vision")
+    dropped_frames: list[int] = []  # frames dropped here (counted with the guard's fault events)
+    offset = np.nan
+    # lossless frames for replay are written beside the loop (PNG encoding of a noisy pair takes longer
+    # than a frame period here; OpenCV releases the GIL while it encodes)
+    writer = ThreadPoolExecutor(max_workers=1) if cfg.save_frames else None
     servo.start()
+    wall0 = time.monotonic()
     try:
-        wall0 = time.monotonic()
-        from vishap.apps.assemble import stereo_noise_m
-        from vishap.world.predictor import KalmanPredictor
-
-        # frames are stamped at the grab on the servo's clock; the world predicts ahead by a typical
-        # vision time (15 ms) and assumes the stereo model's noise at the calibrated camera distance
-        world = World(sc, predictor=KalmanPredictor(meas_std_m=stereo_noise_m(rig, T, sc.objects[0].centre)),
-                      latency_s=0.015)
-        t_first = None
-        armed = False
-        for k, frame in enumerate(source):
-            grabbed = time.monotonic()
-            if t_first is None:
-                t_first = frame.t
-            if pace:  # a recording: wait for the frame's own time
-                wait = (frame.t - t_first) - (grabbed - wall0)
-                if wait > 0:
-                    time.sleep(wait)
-                grabbed = time.monotonic()
-            if grabbed - wall0 > duration_s:
+        anchor = [None, None]
+        for k, (frame, late) in enumerate(_frames(source, pace, cfg.camera_hz, anchor)):
+            if time.monotonic() - wall0 > duration_s:
                 break
             state, _ = servo.read_state()
             t = servo.now()  # the servo's clock at the grab, right also while the servo process is starved
+            if not np.isfinite(offset):
+                offset = frame.t - t
+            if late:  # the next frame is already due: drop this one, so that the targets stay fresh
+                vis_ch.append(**_dropped_row(t, k, mount, state))
+                dropped_frames.append(k)
+                continue
+            if writer is not None:
+                writer.submit(write_frame_png, out / "frames", "left", k, frame.left)
+                writer.submit(write_frame_png, out / "frames", "right", k, frame.right)
             est = vision.process(StereoFrame(k, t, frame.left, frame.right))
-            p_dev = state[1:4] + mount
-            pad = np.full(3, np.nan)
-            X = np.full(3, np.nan)
-            if est.found and est.p_cam is not None:
-                pad = np.asarray(est.p_cam, float) @ T[:3, :3].T + T[:3, 3] - TIP_RADIUS_M * n
-                inter = world.update(t, pad, p_dev)
-                armed = True
-            elif armed:
-                inter = world.update(t, None, p_dev)
-            else:
-                inter = None
-            if inter is not None:
-                X = np.asarray(inter.X_d, float) - mount
-                servo.write_target(target_record(X, t, float(est.confidence), True))
-            ch.append(t=t, wall=grabbed - wall0, found=bool(est.found), confidence=float(est.confidence),
-                      finger_robot=pad, X_d=X + mount, device=state[1:4].copy(), action=int(state[4]),
-                      fault=int(state[5]), vision_ms=float(est.timings.get("total_ms", np.nan)),
-                      age_ms=1e3 * (time.monotonic() - grabbed))
+            res = vision_result(est)
+            p_dev = state[1:4].copy()
+            c0 = time.perf_counter()
+            rec, inter, p_pad = scene_step.step(t, res["found"], res["p_cam"], res["confidence"],
+                                                p_dev if state[0] > 0 else None,
+                                                calibrated=T is not None)
+            world_ms = 1e3 * (time.perf_counter() - c0)
+            servo.write_target(np.append(rec.pack(), offset))
+            now = servo.now()  # the record is published: the frame's age is now - t
+            log_scene_row(log, t, rec, inter, p_pad, p_dev, mount, world_ms)
+            g = gt_index.get(round(float(frame.t), 6))
+            tip_cam = np.full(3, np.nan) if g is None else np.asarray(gt["tip_cam"][g], float)
+            tip_vis = False if g is None else bool(gt["tip_visible_left"][g] and gt["tip_visible_right"][g])
+            if k == 0 and pace:
+                # the recording's clock starts once its first frame is through: the first pass of
+                # vision and the world (imports, allocations) can take seconds on a loaded machine
+                anchor[:] = [frame.t, time.monotonic()]
+                offset = frame.t - servo.now()
+            vis_ch.append(t=t, index=k, dropped=False, found=res["found"], p_cam=res["p_cam"], uv_left=res["uv_left"],
+                          uv_right=res["uv_right"], confidence=res["confidence"], vision_ms=res["vision_ms"],
+                          available_at=now, tip_cam_true=tip_cam,
+                          tip_robot_true=np.full(3, np.nan) if g is None else np.asarray(gt["tip_robot"][g], float),
+                          tip_visible=tip_vis, hand_visible=True if g is None else bool(gt["hand_visible"][g]),
+                          render_ms=np.nan, device_q=np.full(3, np.nan), device_ee=p_dev - mount,
+                          **_stage_ms(est.timings))
     finally:
         report = servo.stop()
         close = getattr(source, "close", None)
         if close:
             close()
-    log.save(out / "log.npz")
-    a = ch.arrays()
-    summary = {
-        "mode": "live",
-        "scene": scene,
-        "frames": len(ch),
-        "vision_ms_per_pair": float(np.nanmedian(a["vision_ms"])) if len(ch) else None,
-        "detection_rate": float(np.mean(a["found"])) if len(ch) else None,
-        "frame_to_target_ms_median": float(np.median(a["age_ms"])) if len(ch) else None,
-        "servo_realtime": report.realtime,
-        "servo_sched_fifo": report.sched_fifo,
-        "servo_steps": report.steps,
-        "servo_step_us_median": report.step_us_median,
-        "servo_lateness": report.lateness,
-        "actions": {name: int(np.sum(a["action"] == i)) for i, name in enumerate(("track", "hold", "retreat"))} if len(ch) else {},
-    }
+        if writer is not None:
+            writer.shutdown(wait=True)
+    res = report.result
+    log.channels.update(res["channels"])
+    # the device's limits as its driver reports them at start-up
+    log.meta["force_limit_n"], log.meta["continuous_force_n"] = res["peak_force_n"], res["continuous_force_n"]
+    res["guard_counts"]["frame_dropped"] += len(dropped_frames)
+    summary = write_outputs(out, log, stats={**res["stats"], "frames_dropped": len(dropped_frames)},
+                            guard_counts=res["guard_counts"])
+    summary.update(mode="live", device=device, source=source_name, servo_realtime=report.realtime,
+                   servo_sched_fifo=report.sched_fifo, servo_steps=report.steps,
+                   servo_step_us_median=report.step_us_median, servo_lateness=report.lateness,
+                   frame_to_target_ms_median=_frame_to_target_ms(log.channel("vision").arrays()))
     summary = to_jsonable(summary)
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary

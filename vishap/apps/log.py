@@ -38,7 +38,7 @@ def code_version() -> dict:
     except (OSError, subprocess.SubprocessError):
         out["git"], out["dirty"] = None, None
     h = hashlib.sha256()
-    for sub in ("_core", "vision", "world", "tactile", "apps"):
+    for sub in ("_core", "vision", "world", "runtime", "tactile", "apps"):
         for f in sorted((root / sub).rglob("*")):
             if f.suffix in (".py", ".yaml", ".yml", ".npz", ".json", ".toml") and "__pycache__" not in f.parts:
                 h.update(f.relative_to(root).as_posix().encode())

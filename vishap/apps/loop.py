@@ -6,35 +6,33 @@ Per base tick (1 ms) the :class:`~vishap.runtime.MultiRateScheduler` runs, in th
                      scripted finger and the device where the MuJoCo plant is; run vision on it; the
                      estimate becomes available ``vision_latency_s`` later (VisHap §2.1);
 ``deliver`` (1 kHz)  hand due vision results to the scene (a latest-value hand-over);
-``scene``   (60 Hz)  registration (camera → robot, Eq. 3) and :meth:`World.update` (§2.2) on the
-                     newest estimate → the device target ``X_d``;
-``servo``   (1 kHz)  the target guard (hold / retreat on bad input) → finger-pad contact → the
-                     world's force law → :class:`ServoLoop` tick (PD + gravity comp., Eq. 4–8),
-                     which steps the MuJoCo plant;
-``tactile`` (1 kHz)  contact sample → tactile renderer (HAPTEX §II-C, 40 Hz pin update inside).
+``scene``   (60 Hz)  the core's scene step (:class:`~vishap.runtime.core.SceneStep`: registration,
+                     Eq. 3, and :meth:`World.update`, §2.2) on the newest estimate → the target record;
+``servo``   (1 kHz)  :meth:`ServoCycle.servo <vishap.apps.cycle.ServoCycle.servo>`: finger-pad contact
+                     on the plant → the core's servo step (guard → force law and Λ → controller,
+                     Eq. 4–9 → MuJoCo plant);
+``tactile`` (1 kHz)  :meth:`ServoCycle.tactile <vishap.apps.cycle.ServoCycle.tactile>` (HAPTEX §II-C,
+                     40 Hz pin update inside).
 
-Ground truth (the scripted finger) drives only what is physically the user's: the rendered hand
-and the pad's contact with the passive object. Everything the system knows about the finger
-comes through the rendered pixels and the vision pipeline.
+Live mode (:mod:`vishap.apps.live_loop`) runs the same scene step and servo cycle on a real clock,
+the servo cycle in its own process. Ground truth (the scripted finger) drives only what is
+physically the user's: the rendered hand and the pad's contact with the passive object. Everything
+the system knows about the finger comes through the rendered pixels and the vision pipeline.
 """
 from __future__ import annotations
 
-import math
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from vishap._core.pose import invert, transform_points
+from vishap._core.pose import transform_points
+from vishap.apps.assemble import vision_result
 from vishap.apps.config import DemoConfig
 from vishap.apps.log import SignalLog, write_frame_png
-from vishap.apps.script import script_for
-from vishap.apps.stages import need, tactile_row
 
 __all__ = ["Demo", "run_demo"]
-
-GUARD_CODES = {"track": 0, "hold": 1, "retreat": 2, "idle": 3}
 
 
 class Demo:
@@ -42,54 +40,44 @@ class Demo:
 
     def __init__(self, cfg: DemoConfig, out, *, progress: bool = False):
         from vishap.apps import assemble
+        from vishap.runtime import MultiRateScheduler
+        from vishap.runtime.core import TargetRecord
 
         self.cfg = cfg
         self.out = Path(out)
         self.out.mkdir(parents=True, exist_ok=True)
         self.progress = progress
-        self.st = assemble.build(cfg, self.out)
-        st = self.st
-        self.script = script_for(cfg.scene, hidden_s=cfg.background_frames / cfg.camera_hz)
+        self.log = SignalLog()
+        self.st = st = assemble.build(cfg, self.out, self.log)
+        self.log.meta.update(assemble.meta(
+            cfg, rig=st.rig, T_true=st.T_true, T_est=st.T_est, calib_report=st.calib_report, scene=st.scene,
+            force_limit_n=st.force_limit_n, continuous_force_n=float(st.plant.limits.continuous_force_n)),
+            sleeve_finger_dir=st.cycle.finger.finger_dir)
+        self.script = st.script
         self.n = np.asarray(st.scene_object.normal, float)
-        self.log = SignalLog(assemble.meta(cfg, st))
         self.frame_index = 0
         self.pending: list[tuple[float, dict]] = []   # (available_at, vision result)
         self.newest: dict | None = None               # vision → scene mailbox
         self.newest_seen = -1
-        self.target = {"X_d": np.full(3, np.nan), "made_at": -math.inf, "confidence": 0.0, "calibrated": st.T_est is not None}
-        self.armed = False          # the guard starts once the first finger estimate (or a calibration fault) arrives
-        self.inter = None           # the world's newest Interaction
-        self.lam_state = None       # object gain Λ currently set in the controller (None: identity)
-        self.last_key = None
-        self.last_action = "idle"
-        self.retreat_key = None
-        self.contact = None
+        self.target = TargetRecord()                  # scene → servo mailbox (in-process)
         self.video = None
         if cfg.video:
             from vishap.apps.overlay import VideoWriter
 
             self.video = VideoWriter(self.out / "demo.mp4", cfg.camera_hz)
-        self.wall = {"render": 0.0, "vision": 0.0, "servo": 0.0, "tactile": 0.0, "scene": 0.0, "io": 0.0}
-        self.stats = {"frames_dropped": 0, "force_over_limit": 0, "nonfinite_commands": 0, "reaction_misses": 0}
+        self.wall = {"render": 0.0, "vision": 0.0, "scene": 0.0, "io": 0.0}
+        self.stats = {"frames_dropped": 0}
 
-        runtime = need("vishap.runtime", "runtime")
-        self.sched = runtime.MultiRateScheduler(cfg.servo_hz)
+        self.sched = MultiRateScheduler(cfg.servo_hz)
         self.sched.add("camera", cfg.camera_hz, self.camera)
         self.sched.add("deliver", cfg.servo_hz, self.deliver)
         self.sched.add("scene", cfg.scene_hz, self.scene)
-        self.sched.add("servo", cfg.servo_hz, self.servo)
-        self.sched.add("tactile", cfg.tactile_hz, self.tactile)
+        self.sched.add("servo", cfg.servo_hz, lambda t: st.cycle.servo(t, self.target))
+        self.sched.add("tactile", cfg.tactile_hz, st.cycle.tactile)
 
     # ------------------------------------------------------------------ helpers
     def _fault(self, kind: str, t: float) -> bool:
         return self.cfg.fault_active(kind, t)
-
-    def _device_point(self, p_ee) -> np.ndarray:
-        return np.asarray(p_ee, float) + self.st.mount_offset
-
-    def _finger(self, t: float):
-        pad, v = self.script.pad(t)
-        return pad, v, pad + self.st.tip_radius_m * self.n
 
     # ------------------------------------------------------------------ camera (30 Hz)
     def camera(self, t: float) -> None:
@@ -99,7 +87,7 @@ class Demo:
         self.frame_index += 1
         st = self.st
         dev = st.plant.read()
-        _, _, tip = self._finger(t)
+        tip = self.script.tip(t, st.tip_radius_m)
         visible = self.script.visible(t) and not self._fault("finger_lost", t)
         c0 = time.perf_counter()
         pair = st.render(t, tip_robot=tip, finger_dir=self.script.finger_dir, flexion=self.script.flexion,
@@ -118,7 +106,6 @@ class Demo:
                "vision_ms": np.nan, "available_at": np.nan, "tip_cam_true": tip_cam, "tip_robot_true": tip,
                "tip_visible": tip_vis, "hand_visible": visible, "render_ms": 1e3 * (c1 - c0),
                "device_q": dev.q, "device_ee": dev.p_robot, **_stage_ms({})}
-        est = None
         if dropped:
             self.stats["frames_dropped"] += 1
             st.guard.count("frame_dropped")
@@ -126,7 +113,7 @@ class Demo:
             c2 = time.perf_counter()
             est = st.vision.process(st.StereoFrame(k, t, pair.left, pair.right))
             self.wall["vision"] += time.perf_counter() - c2
-            res = st.vision_result(est)
+            res = vision_result(est)
             if self._fault("nan", t) and res["found"]:
                 res["p_cam"] = np.full(3, np.nan)
             available = t + self.cfg.vision_latency_s
@@ -140,8 +127,9 @@ class Demo:
         self.log.channel("vision").append(**row)
         if self.video is not None:
             c3 = time.perf_counter()
-            f = 0.0 if self.contact is None else float(np.linalg.norm(self.contact[0]))
-            extra = [f"device: {self.last_action}   contact force {f:4.2f} N"]
+            last = st.cycle.last
+            f = 0.0 if last is None else float(np.linalg.norm(last[0]))
+            extra = [f"device: {st.cycle.step.last_action}   contact force {f:4.2f} N"]
             self.video.write(st.overlay(pair, row, dev, self.target, t, extra))
             self.wall["io"] += time.perf_counter() - c3
         if self.progress and (k % 10 == 0 or k == self.cfg.frames - 1):
@@ -161,105 +149,14 @@ class Demo:
         self.newest_seen = r["index"]
         c0 = time.perf_counter()
         st = self.st
-        calibrated = st.T_est is not None and not self._fault("calibration_missing", t)
-        X_d = np.full(3, np.nan)
-        p_pad = np.full(3, np.nan)
-        inter = None
-        p_dev = self._device_point(st.plant.read().p_robot)
-        if calibrated:
-            if r["found"] and np.all(np.isfinite(r["p_cam"])):
-                p_pad = transform_points(st.T_est, r["p_cam"]) - st.tip_radius_m * self.n
-                inter = st.world.update(r["t"], p_pad, p_dev)
-            elif not r["found"] and self.armed:
-                inter = st.world.update(r["t"], None, p_dev)
-            if inter is not None:
-                X_d = np.asarray(inter.X_d, float) - st.mount_offset
-                self.inter = inter
-        if not self.armed and (not calibrated or r["found"]):
-            self.armed = True
-        confidence = float(r["confidence"])  # the tracker's: drops with consecutive misses
-        self.target = {"X_d": X_d, "made_at": r["t"], "confidence": confidence, "calibrated": calibrated}
-        self.log.channel("scene").append(
-            t=t, t_sample=r["t"], finger_robot=p_pad, X_d=X_d + st.mount_offset, calibrated=calibrated,
-            subject=-1 if inter is None or inter.object_name is None else st.object_index(inter.object_name),
-            depth=np.nan if inter is None else float(inter.depth),
-            imminent=bool(inter is not None and inter.imminent),
-            in_contact=bool(inter is not None and inter.in_contact), world_ms=1e3 * (time.perf_counter() - c0))
+        _, p_dev = st.cycle.step.read()
+        calibrated = not self._fault("calibration_missing", t)
+        # the tracker's confidence drops with consecutive misses
+        rec, inter, p_pad = st.scene_step.step(r["t"], r["found"], r["p_cam"], r["confidence"], p_dev,
+                                               calibrated=calibrated)
+        self.target = rec
+        log_scene_row(self.log, t, rec, inter, p_pad, p_dev, st.mount_offset, 1e3 * (time.perf_counter() - c0))
         self.wall["scene"] += time.perf_counter() - c0
-
-    # ------------------------------------------------------------------ servo (1 kHz)
-    def servo(self, t: float) -> None:
-        c0 = time.perf_counter()
-        st = self.st
-        tg = self.target
-        if self.armed:
-            dec = st.guard.decide(t, tg["X_d"], tg["made_at"], tg["confidence"], tg["calibrated"])
-            action, X_ee = dec.action, dec.X_d
-            bad = (not tg["calibrated"] or not np.all(np.isfinite(tg["X_d"]))
-                   or t - tg["made_at"] > st.guard.stale_after_s or tg["confidence"] < st.guard.min_confidence)
-            if bad and action == "track":
-                self.stats["reaction_misses"] += 1
-        else:  # no finger seen yet: the servo holds the arm where it is
-            action, X_ee = "idle", None
-        dev = st.plant.read()
-        p_dev = self._device_point(dev.p_robot)
-        pad, v_pad, _ = self._finger(t)
-        F_on_dev = st.pad_force(pad, v_pad, p_dev, dev.v_robot)
-        st.plant.apply_tip_force(F_on_dev)
-        # the subject's law renders contact while the device is pushed under its surface (Eq. 8-9);
-        # a retreating device renders nothing
-        world, ctrl = st.world, st.controller
-        F_law, lam, R = world.contact_render(p_dev, dev.v_robot, self.inter if action in ("track", "hold") else None)
-        if lam != self.lam_state:
-            ctrl.set_lambda(lam, None if lam is None else R)
-            if lam is None and world.law is not None:
-                world.law.reset()
-            self.lam_state = lam
-        if action == "track":
-            key = tg["made_at"]
-        elif action == "retreat":
-            if self.last_action != "retreat":
-                self.retreat_key = t
-            key = self.retreat_key
-        else:
-            key = self.last_key
-        self.last_key, self.last_action = key, action
-        st.servo.tick(t, None if key is None else X_ee, F_law, t_sample=key)
-        F_cmd = np.array(ctrl.F_cmd, float)
-        F_pd = np.array(ctrl.F_pd, float)
-        if not np.all(np.isfinite(F_cmd)):
-            self.stats["nonfinite_commands"] += 1
-        if float(np.linalg.norm(F_cmd)) > st.force_limit_n * (1 + 1e-6):
-            self.stats["force_over_limit"] += 1
-        dt_wall = time.perf_counter() - c0
-        self.wall["servo"] += dt_wall
-        obj = st.scene_object
-        F_on_finger = -F_on_dev
-        self.contact = (F_on_finger, pad, v_pad)
-        X_log = np.full(3, np.nan) if X_ee is None else X_ee + st.mount_offset
-        self.log.channel("servo").append(
-            t=t, q=dev.q, p_ee=dev.p_robot, device_point=p_dev, v_device=dev.v_robot,
-            X_d=X_log, guard=GUARD_CODES[action], F_cmd=F_cmd, F_pd=F_pd,
-            F_law=np.zeros(3) if F_law is None else np.asarray(F_law, float), law_active=F_law is not None,
-            F_contact=F_on_finger, in_contact=bool(np.any(F_on_dev)),
-            saturated=bool(ctrl.saturated), heat_n2=float(ctrl.heat),
-            finger_point=pad, finger_velocity=v_pad, finger_depth=-float(obj.height(pad)), device_depth=-float(obj.height(p_dev)),
-            tick_us=1e6 * dt_wall)
-
-    # ------------------------------------------------------------------ tactile (1 kHz)
-    def tactile(self, t: float) -> None:
-        if self.contact is None or self.st.tactile is None:
-            return
-        c0 = time.perf_counter()
-        F_on_finger, pad, v_pad = self.contact
-        st = self.st
-        sample = st.contact_sample(t, pad, v_pad, F_on_finger, self.script.finger_dir)
-        out = st.tactile.step(sample)
-        row = {"t": t, "normal_force": float(sample.normal_force_n), "in_contact": bool(sample.in_contact),
-               "position": sample.position, "velocity": sample.velocity, "state": st.tactile_state(out)}
-        row.update(tactile_row(out))
-        self.log.channel("tactile").append(**row)
-        self.wall["tactile"] += time.perf_counter() - c0
 
     # ------------------------------------------------------------------ run
     def run(self) -> None:
@@ -276,7 +173,18 @@ class Demo:
 
         if self.video is not None:
             self.video.close()
-        return write_outputs(self)
+        wall = {**self.wall, **self.st.cycle.wall, "total": self.wall_total}
+        return write_outputs(self.out, self.log, wall=wall, stats={**self.stats, **self.st.cycle.stats},
+                             guard_counts=self.st.guard.counts)
+
+
+def log_scene_row(log, t, rec, inter, p_pad, p_dev, mount, world_ms) -> None:
+    """The scene channel's row (one schema for batch, live and replay)."""
+    log.channel("scene").append(
+        t=t, t_sample=rec.made_at, seq=rec.seq, finger_robot=p_pad, device_point=p_dev,
+        X_d=np.asarray(rec.X_ee, float) + mount, calibrated=rec.calibrated, confidence=rec.confidence,
+        armed=rec.armed, subject=rec.subject, depth=np.nan if inter is None else float(inter.depth),
+        imminent=rec.imminent, in_contact=rec.in_contact, world_ms=world_ms)
 
 
 def _stage_ms(timings: dict) -> dict:

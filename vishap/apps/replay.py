@@ -6,10 +6,15 @@ replay builds fresh stages from the logged configuration, feeds them those input
 order and compares their outputs with the logged ones:
 
 - vision: every frame that reached vision → ``found``, ``p_cam``, ``uv_left/right``, ``confidence``;
-- world: every scene update (the newest vision estimate, mapped by the logged calibration, with the
-  device position of that tick) → ``X_d``, ``depth``, ``imminent``, ``in_contact``; and at every
-  servo tick the force law's output where the demo evaluated it;
-- tactile: every tick's contact sample → the renderer's drive signals and contact state.
+- scene step (:class:`vishap.runtime.core.SceneStep`, the same code the run used): every scene
+  update (the newest vision estimate, mapped by the logged calibration, with the device position of
+  that update) → ``X_d``, ``depth``, ``subject``, ``imminent``, ``in_contact``; and at every servo tick
+  the servo step's force law (:class:`~vishap.runtime.core.ContactRenderer`) on the record that tick
+  used, the device state and the guard's action;
+- tactile: every tick's contact sample (:func:`vishap.apps.cycle.contact_sample`) → the renderer's
+  drive signals and contact state.
+
+Batch and live logs share the schema, so both replay (a live log needs its frames saved).
 
 Wall-clock timings are not outputs and are not compared. The log records the code that made it
 (git commit and a digest of the vision, world, tactile and apps code); replaying with other code warns, since a changed model
@@ -27,7 +32,6 @@ import numpy as np
 from vishap._core.errors import ConfigError
 from vishap.apps.config import DemoConfig
 from vishap.apps.log import SignalLog, load_log, read_frame_png
-from vishap.apps.stages import need, tactile_row
 
 __all__ = ["replay", "compare"]
 
@@ -69,8 +73,6 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
     rig = _rig_from_string(meta["rig"])
     T_est = None if meta.get("T_robot_cam_est") is None else np.asarray(meta["T_robot_cam_est"], float)
     mount = np.asarray(meta["mount_offset"], float)
-    r_tip = float(meta["tip_radius_m"])
-    n = np.asarray(meta["object"]["normal"], float)
     new = SignalLog(meta)
     report: dict = {"log": str(log_path), "scene": cfg.scene}
     from vishap.apps.log import code_version
@@ -85,11 +87,12 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
               "outputs may differ", file=sys.stderr)
 
     # -- vision -----------------------------------------------------------------------------------
-    vision_mod = need("vishap.vision.pipeline", "vision")
-    capture = need("vishap.vision.capture", "vision capture")
-    from vishap.apps.assemble import _vision_result
+    from vishap.apps.assemble import make_scene_step, make_tactile, make_world, vision_result
+    from vishap.vision.capture import StereoFrame
+    from vishap.vision.pipeline import VisionPipeline
+    from vishap.world.scene import load_scene
 
-    pipe = vision_mod.VisionPipeline(rig)
+    pipe = VisionPipeline(rig)
     v = ch["vision"]
     by_t = {}
     for i in range(len(v["t"])):
@@ -98,8 +101,8 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
             res = {"found": False, "p_cam": np.full(3, np.nan), "uv_left": np.full(2, np.nan),
                    "uv_right": np.full(2, np.nan), "confidence": 0.0}
         else:
-            est = pipe.process(capture.StereoFrame(k, t, read_frame_png(frames, "left", k), read_frame_png(frames, "right", k)))
-            res = _vision_result(est)
+            res = vision_result(pipe.process(StereoFrame(k, t, read_frame_png(frames, "left", k),
+                                                         read_frame_png(frames, "right", k))))
             if cfg.fault_active("nan", t) and res["found"]:
                 res["p_cam"] = np.full(3, np.nan)
         by_t[t] = res
@@ -108,71 +111,52 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
     nv = new.channel("vision").arrays()
     report["vision"] = compare(v, nv, ["found", "p_cam", "uv_left", "uv_right", "confidence"], atol)
 
-    # -- world ------------------------------------------------------------------------------------
-    from vishap.apps.assemble import make_world
+    # -- scene step and the servo step's force law, in the logged order ------------------------------
+    from vishap.apps.loop import log_scene_row
+    from vishap.runtime.core import ContactRenderer, TargetRecord
 
-    world_scene = need("vishap.world.scene", "world (scenes)")
-    world = make_world(cfg, world_scene.load_scene(cfg.scene), rig, T_est)
+    scene = load_scene(cfg.scene)
+    scene_step = make_scene_step(make_world(cfg, scene, rig, T_est), T_est)
+    contact = ContactRenderer(scene.objects, max_force_n=float(meta["force_limit_n"]))
     s, sv = ch.get("scene", {}), ch["servo"]
-    tick_of = {round(float(t) * cfg.servo_hz): i for i, t in enumerate(sv["t"])}
-    scene_rows = len(s.get("t", []))
-    j = 0
-    inter = None
-    lam_state = None
-    armed = False
+    records = {0: TargetRecord()}  # by sequence number; 0: the servo had no record yet
     F_law_new = np.zeros_like(sv["F_law"])
-    events = sorted([(float(s["t"][i]), 0, i) for i in range(scene_rows)] +
-                    [(float(sv["t"][i]), 1, i) for i in range(len(sv["t"]))])
+    events = sorted([(float(t), 0, i) for i, t in enumerate(s.get("t", []))] +
+                    [(float(t), 1, i) for i, t in enumerate(sv["t"])])
     for t, kind, i in events:
         if kind == 0:
             r = by_t[float(s["t_sample"][i])]
-            p_dev = sv["device_point"][tick_of[round(t * cfg.servo_hz)]]
-            calibrated = bool(s["calibrated"][i])
-            p_pad = np.full(3, np.nan)
-            X = np.full(3, np.nan)
-            it = None
-            if calibrated and T_est is not None:
-                if r["found"] and np.all(np.isfinite(r["p_cam"])):
-                    p_pad = r["p_cam"] @ T_est[:3, :3].T + T_est[:3, 3] - r_tip * n
-                    it = world.update(float(s["t_sample"][i]), p_pad, p_dev)
-                elif not r["found"] and armed:
-                    it = world.update(float(s["t_sample"][i]), None, p_dev)
-            if it is not None:
-                X = np.asarray(it.X_d, float)
-                inter = it
-            armed = armed or (not calibrated) or r["found"]
-            new.channel("scene").append(t=t, finger_robot=p_pad, X_d=X, depth=np.nan if it is None else float(it.depth),
-                                        imminent=bool(it is not None and it.imminent),
-                                        in_contact=bool(it is not None and it.in_contact))
+            rec, inter, p_pad = scene_step.step(float(s["t_sample"][i]), r["found"], r["p_cam"], r["confidence"],
+                                                s["device_point"][i], calibrated=bool(s["calibrated"][i]))
+            records[rec.seq] = rec
+            log_scene_row(new, t, rec, inter, p_pad, s["device_point"][i], mount, 0.0)
         else:
-            F, lam, _ = world.contact_render(sv["device_point"][i], sv["v_device"][i],
-                                             inter if sv["guard"][i] in (0, 1) else None)
+            rec = records[int(sv["record_seq"][i])]
+            F, _, _, _ = contact.update(sv["device_point"][i], sv["v_device"][i], rec.subject,
+                                        int(sv["guard"][i]) in (0, 1) and (rec.imminent or rec.in_contact))
             if F is not None:
                 F_law_new[i] = F
-            if lam != lam_state:
-                if lam is None and world.law is not None:
-                    world.law.reset()
-                lam_state = lam
-    if scene_rows:
+    if len(s.get("t", [])):
         ns = new.channel("scene").arrays()
-        report["world"] = compare(s, ns, ["finger_robot", "X_d", "depth", "imminent", "in_contact"], atol)
+        report["world"] = compare(s, ns, ["finger_robot", "X_d", "depth", "imminent", "in_contact", "subject"], atol)
     report["world"] = {**report.get("world", {}), "F_law": compare({"F": sv["F_law"]}, {"F": F_law_new}, ["F"], atol)["F"]}
 
     # -- tactile ----------------------------------------------------------------------------------
     tac = ch.get("tactile", {})
     if len(tac.get("t", [])):
-        from vishap.apps.assemble import _build_tactile, _contact_sample
-        from vishap.apps.script import script_for
+        from vishap.apps.cycle import contact_sample, tactile_row, tactile_state
 
-        renderer, state_of = _build_tactile(cfg, world.scene)
-        finger_dir = script_for(cfg.scene, hidden_s=0.0).finger_dir
-        obj = world.scene.objects[0]
+        renderer = make_tactile(cfg, scene)
+        finger_dir = meta.get("sleeve_finger_dir")
+        tick_of = {round(float(t) * cfg.servo_hz): i for i, t in enumerate(sv["t"])}
         rows = SignalLog().channel("tactile")
         for i in range(len(tac["t"])):
-            k = tick_of[round(float(tac["t"][i]) * cfg.servo_hz)]
-            smp = _contact_sample(obj, float(tac["t"][i]), sv["finger_point"][k], sv["finger_velocity"][k], sv["F_contact"][k], finger_dir)
+            t = float(tac["t"][i])
+            k = tick_of[round(t * cfg.servo_hz)]
+            smp = contact_sample(scene.objects[0], t, sv["device_point"][k], sv["v_device"][k],
+                                 records[int(sv["record_seq"][k])], sv["F_contact"][k], finger_dir)
             o = renderer.step(smp)
-            rows.append(t=float(tac["t"][i]), state=state_of(o), **tactile_row(o))
+            rows.append(t=t, state=tactile_state(o), **tactile_row(o))
         nt = rows.arrays()
         keys = [k for k in nt if k != "t" and k in tac]
         report["tactile"] = compare(tac, nt, keys, atol)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from vishap.apps.metrics import approaches, force_depth_r2, tip3d_errors_mm
-from vishap.bench._common import to_jsonable
+from vishap._core.output import to_jsonable
 
 __all__ = ["summarize", "write_plots", "write_outputs"]
 
@@ -93,6 +93,8 @@ def summarize(meta: dict, ch: dict[str, dict[str, np.ndarray]], *, wall: dict | 
         out["fault_events"] = dict(guard_counts)
     if stats is not None:
         out.update({k: int(v) for k, v in stats.items()})
+    if "record_seq" in servo:
+        out["reaction_misses"] = reaction_misses(meta, ch)
     if wall is not None:
         sim_s = out["duration_s"]
         loop = wall["total"] - wall["render"] - wall.get("io", 0.0)
@@ -137,18 +139,41 @@ def write_plots(out: Path, meta: dict, ch: dict) -> list[str]:
     return [str(Path(f).name) for f in files]
 
 
-def write_outputs(demo) -> dict:
-    """Save ``log.npz``, the plots and ``summary.json`` of a finished :class:`~vishap.apps.loop.Demo`."""
+def write_outputs(out: Path, log, *, wall: dict | None = None, stats: dict | None = None,
+                  guard_counts: dict | None = None) -> dict:
+    """Save ``log.npz``, the plots and ``summary.json`` of a finished run (batch or live) into ``out``."""
     from vishap.apps.log import load_log
 
-    out = demo.out
-    log_path = demo.log.save(out / "log.npz")
+    out = Path(out)
+    log_path = log.save(out / "log.npz")
     meta, ch = load_log(log_path)
-    wall = dict(demo.wall)
-    wall["total"] = demo.wall_total
-    summary = summarize(meta, ch, wall=wall, stats=demo.stats, guard_counts=demo.st.guard.counts)
+    summary = summarize(meta, ch, wall=wall, stats=stats, guard_counts=guard_counts)
     summary["plots"] = write_plots(out, meta, ch)
     summary["files"] = sorted(p.name for p in out.iterdir() if p.is_file()) + (["frames/"] if (out / "frames").is_dir() else [])
     summary = to_jsonable(summary)
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
+
+
+def reaction_misses(meta: dict, ch: dict) -> int:
+    """Servo ticks that tracked a target the log shows was bad: non-finite, uncalibrated, older than
+    the configured ``stale_after_s`` or below the guard's confidence floor. Computed from the logged
+    records the servo used (``servo/record_seq`` → ``scene`` row), independently of the guard."""
+    servo, scene = ch.get("servo", {}), ch.get("scene", {})
+    if not len(servo.get("t", [])):
+        return 0
+    from vishap.runtime.safety import TargetGuard
+
+    cfg = meta["config"]
+    seq = np.asarray(servo["record_seq"], int)
+    track = (np.asarray(servo["guard"]) == 0) & (seq > 0)
+    if not track.any():
+        return 0
+    row = {int(s): i for i, s in enumerate(scene["seq"])}
+    idx = np.array([row.get(int(s), -1) for s in seq[track]])
+    known = idx >= 0  # tracking a record the log never saw is a miss by itself
+    i, t = idx[known], servo["t"][track][known]
+    bad = (~np.all(np.isfinite(scene["X_d"][i]), axis=1) | ~scene["calibrated"][i].astype(bool)
+           | (t - scene["t_sample"][i] > cfg["stale_after_s"] + 1e-9)
+           | (scene["confidence"][i] < TargetGuard.min_confidence))
+    return int(bad.sum() + np.sum(~known))

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from vishap.bench._common import machine_info, new_figure, save_figure
+from vishap.robot.params import WORKSPACE_MAX, WORKSPACE_MIN
 
 HELP = "live servo lateness (p99, >1 ms fraction) while vision runs; SCHED_FIFO vs best-effort"
 
@@ -74,15 +75,24 @@ def _run_config(cfg: Config, seconds: float, frames, rig, T_robot_cam, camera_hz
     import functools
     import os
 
-    from vishap.runtime.device_servo import STATE_SIZE, TARGET_SIZE, make_sim_device_servo, target_record
+    from vishap.apps.config import DemoConfig
+    from vishap.apps.live_loop import STATE_SIZE, _make_live_cycle
+    from vishap.runtime.core import RECORD_SIZE, TargetRecord
     from vishap.runtime.live import LiveServo
     from vishap.vision.capture import StereoFrame
     from vishap.vision.pipeline import VisionPipeline
 
     ncpu = os.cpu_count() or 1
     servo_cpu = ncpu - 1 if (cfg.pin and ncpu > 1) else None
-    servo = LiveServo(functools.partial(make_sim_device_servo), target_size=TARGET_SIZE, state_size=STATE_SIZE,
-                      realtime=cfg.realtime, cpu=servo_cpu)
+    # the live mode's servo process: the demo's servo cycle (guard, laws, controller, plant, sleeve)
+    servo = LiveServo(functools.partial(_make_live_cycle, DemoConfig(scene="wall").model_dump(), "sim", None),
+                      target_size=RECORD_SIZE + 1, state_size=STATE_SIZE, realtime=cfg.realtime, cpu=servo_cpu)
+    seq = [0]
+
+    def target_record(x, made_at, confidence):
+        seq[0] += 1
+        return np.append(TargetRecord(seq[0], tuple(x), made_at, confidence, True, True, 0).pack(), np.nan)
+
     old_affinity = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
     if servo_cpu is not None:
         os.sched_setaffinity(0, set(range(ncpu)) - {servo_cpu})
@@ -102,10 +112,10 @@ def _run_config(cfg: Config, seconds: float, frames, rig, T_robot_cam, camera_hz
                 est = vision.process(StereoFrame(k, now, f.left, f.right))
                 vision_ms.append((time.perf_counter() - c0) * 1e3)
                 if est.found:
-                    last = np.clip(R @ est.p_cam + t, (0.10, -0.065, -0.20), (0.30, 0.065, -0.04))
-                servo.write_target(target_record(last, time.monotonic() - t0, 1.0))
+                    last = np.clip(R @ est.p_cam + t, WORKSPACE_MIN, WORKSPACE_MAX)
+                servo.write_target(target_record(last, servo.now(), 1.0))
             else:
-                servo.write_target(target_record(last, now, 1.0))
+                servo.write_target(target_record(last, servo.now(), 1.0))
             k += 1
             sleep = (k * period) - (time.monotonic() - t0)
             if sleep > 0:

@@ -24,23 +24,23 @@ from vishap.bench._common import machine_info, median_us, new_figure, save_figur
 
 HELP = "world: closed-loop meeting on the MuJoCo device (lead, contact error, Fig. 6), policies, servo cost"
 
-#: (predictor, handover, contact model, travel gains (Kp, Kv)); the last is the default of
-#: :class:`~vishap.world.World` with :data:`~vishap.world.closed_loop.TRAVEL_GAINS`, the one before it
-#: the previous default (ray+path fusion, the contact gains while travelling too)
-OLD_GAINS = (800.0, 32.0)
-NEW_GAINS = (1600.0, 32.0)
+#: (predictor, handover, contact model) on the system's servo step (gains file, guard, travel limiter);
+#: ``both`` is the system's (:class:`vishap.apps.config.DemoConfig`), ``all`` the world's own default
 POLICIES = [
-    ("none", "track", "ray", OLD_GAINS),
-    ("cv", "hold", "ray", OLD_GAINS),
-    ("kalman", "hold", "ray", OLD_GAINS),
-    ("kalman", "hold", "path", OLD_GAINS),
-    ("kalman", "hold", "reach", OLD_GAINS),
-    ("kalman", "hold", "ray", NEW_GAINS),
-    ("kalman", "hold", "both", NEW_GAINS),
-    ("kalman", "hold", "both", OLD_GAINS),
-    ("kalman", "hold", "reach", NEW_GAINS),
-    ("kalman", "hold", "all", NEW_GAINS),
+    ("none", "track", "ray"),
+    ("cv", "hold", "ray"),
+    ("kalman", "hold", "ray"),
+    ("kalman", "hold", "path"),
+    ("kalman", "hold", "reach"),
+    ("kalman", "hold", "both"),
+    ("kalman", "hold", "all"),
 ]
+
+
+def _system_contact_model() -> str:
+    from vishap.apps.config import DemoConfig
+
+    return DemoConfig.model_fields["contact_model"].default
 
 
 def add_arguments(p) -> None:
@@ -123,45 +123,49 @@ def _click(d, f):
 
 
 def _servo_cost(scenes, rounds=5, n=3000):
-    """Median µs of the force law alone and of a whole servo tick with it, per scene (interleaved)."""
+    """Median µs of the force law alone and of a whole servo step with it, per scene (interleaved),
+    beside a servo step without a law (no subject)."""
+    from vishap.robot import kinematics
+    from vishap.runtime.core import TargetRecord
     from vishap.world.closed_loop import make_device
-    from vishap.world.world import World
 
     setups = {}
     for name, scene in scenes.items():
-        w = World(scene)
         obj = scene.objects[0]
-        w.update(0.0, obj.centre + obj.normal * 0.002)
-        p_in = obj.centre - obj.normal * 0.001
+        step = make_device(scene)
+        p_in = obj.centre - obj.normal * 0.001  # the device's contact point, pressed 1 mm in
+        X_ee = tuple(p_in - step.mount)
+        step.device.reset(kinematics.ik(np.asarray(X_ee)))
         v = np.array([0.01, 0.0, -0.01])
-        plant, ctrl, servo = make_device(scene)
-        from vishap.robot import kinematics
-
-        plant.reset(kinematics.ik(p_in))
-        setups[name] = (w, p_in, v, plant, servo)
+        law_rec = TargetRecord(1, X_ee, 0.0, 1.0, True, True, 0, True, True)
+        free_rec = TargetRecord(1, X_ee, 0.0, 1.0, True, True, -1, False, False)
+        setups[name] = (step, p_in, v, law_rec, free_rec)
     out = {k: {"law": [], "tick_with_law": []} for k in setups}
     free = []
     for _ in range(rounds):
-        for name, (w, p_in, v, plant, servo) in setups.items():
-            out[name]["law"].append(median_us(time_calls(lambda: w.force_robot(p_in, v), n)))
+        for name, (step, p_in, v, law_rec, _) in setups.items():
+            law = step.contact.laws[0]
+            out[name]["law"].append(median_us(time_calls(lambda: law.force_robot(p_in, v), n)))
             t = [0.0]
 
             def tick():
                 t[0] += 0.001
-                servo.tick(t[0], p_in, w.force_robot(p_in, v))
+                law_rec.made_at = t[0]
+                step.tick(t[0], law_rec)
 
             out[name]["tick_with_law"].append(median_us(time_calls(tick, n)))
-        w0, p0, _, plant0, servo0 = next(iter(setups.values()))
+        step0, _, _, _, free_rec = next(iter(setups.values()))
         t0 = [0.0]
 
         def tick_free():
             t0[0] += 0.001
-            servo0.tick(t0[0], p0)
+            free_rec.made_at = t0[0]
+            step0.tick(t0[0], free_rec)
 
         free.append(median_us(time_calls(tick_free, n)))
     rec = {k: {kk: float(np.median(vv)) for kk, vv in d.items()} for k, d in out.items()}
-    for name, (w, *_rest) in setups.items():
-        rec[name]["laws"] = sorted({type(law).__name__ for law in w.laws.values()})
+    for name, (step, *_rest) in setups.items():
+        rec[name]["laws"] = sorted({type(law).__name__ for law in step.contact.laws})
     rec["tick_without_law"] = float(np.median(free))
     return rec
 
@@ -193,7 +197,7 @@ def _perfect_world_class():
 
 
 def run(args) -> dict:
-    from vishap.world.closed_loop import CONTACT_GAINS, TRAVEL_GAINS, FingerPad, VisionModel, run_approach
+    from vishap.world.closed_loop import FingerPad, VisionModel, run_approach
     from vishap.world.scene import load_scene
     from vishap.world.trajectories import make_approaches
     from vishap.world.world import World
@@ -204,12 +208,13 @@ def run(args) -> dict:
     in_place_m = args.in_place_mm / 1e3
     scenes = {name: load_scene(name) for name in args.scenes.split(",") if name}
     t_start = time.perf_counter()
+    cm = _system_contact_model()
 
     per_scene, allres = {}, []
     for si, (name, scene) in enumerate(scenes.items()):
         trajs = make_approaches(scene, args.approaches, seed=args.seed + 100 * si, bow_fraction=args.bow)
         res = [
-            run_approach(scene, tr, World(scene, latency_s=vision.latency_s), vision=vision,
+            run_approach(scene, tr, World(scene, latency_s=vision.latency_s, contact_model=cm), vision=vision,
                          seed=args.seed + 1000 * si + i, in_place_m=in_place_m)
             for i, tr in enumerate(trajs)
         ]
@@ -275,17 +280,15 @@ def run(args) -> dict:
     pol_scene = scenes.get("wall") or load_scene("wall")
     trajs = make_approaches(pol_scene, args.policy_approaches, seed=args.seed + 7, bow_fraction=args.bow, slide=False)
     policies = {}
-    for pred, ho, cm, g in POLICIES:
+    for pred, ho, pcm in POLICIES:
         rs = [
-            run_approach(pol_scene, tr, World(pol_scene, predictor=pred, handover=ho, contact_model=cm,
+            run_approach(pol_scene, tr, World(pol_scene, predictor=pred, handover=ho, contact_model=pcm,
                                               latency_s=vision.latency_s),
-                         vision=vision, seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02,
-                         gains=(g, CONTACT_GAINS))
+                         vision=vision, seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02)
             for i, tr in enumerate(trajs)
         ]
-        tag = {("kalman", "hold", "both", OLD_GAINS): " (previous default)",
-               ("kalman", "hold", "all", NEW_GAINS): " (default)"}.get((pred, ho, cm, g), "")
-        policies[f"{pred}+{ho}+{cm} Kp{g[0]:.0f}{tag}"] = {**_summary(rs, in_place_m), "errors_mm": [r.contact_error_m * 1e3 for r in rs],
+        tag = " (system)" if (pred, ho, pcm) == ("kalman", "hold", cm) else ""
+        policies[f"{pred}+{ho}+{pcm}{tag}"] = {**_summary(rs, in_place_m), "errors_mm": [r.contact_error_m * 1e3 for r in rs],
                                                      "speeds": [r.speed_m_s for r in rs]}
     charts.append(str(_plot_policies(policies, out / "policies.png")))
 
@@ -297,7 +300,7 @@ def run(args) -> dict:
         ("ideal_250hz_no_latency_no_noise", VisionModel(250.0, 0.0, 0.0, 0.0)),
     ):
         rs = [
-            run_approach(pol_scene, tr, World(pol_scene, latency_s=vm.latency_s), vision=vm,
+            run_approach(pol_scene, tr, World(pol_scene, latency_s=vm.latency_s, contact_model=cm), vision=vm,
                          seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02)
             for i, tr in enumerate(trajs)
         ]
@@ -307,7 +310,7 @@ def run(args) -> dict:
     for label, ahead in (("perfect_prediction", None), ("perfect_prediction_100ms_before_touch", 0.1)):
         rs = []
         for i, tr in enumerate(trajs):
-            w = PerfectWorld(pol_scene, latency_s=vision.latency_s)
+            w = PerfectWorld(pol_scene, latency_s=vision.latency_s, contact_model=cm)
             w.truth(tr, ahead)
             rs.append(run_approach(pol_scene, tr, w, vision=vision, seed=args.seed + 5000 + i, in_place_m=in_place_m,
                                    stop_after_contact_s=0.02))
@@ -319,8 +322,8 @@ def run(args) -> dict:
     record["settings"] = {
         "vision": {"rate_hz": vision.rate_hz, "latency_s": vision.latency_s, "noise_m": vision.noise_m, "dropout": vision.dropout},
         "in_place_mm": args.in_place_mm, "speeds_m_s": [0.1, 0.2, 0.3, 0.4, 0.5], "bow_fraction": args.bow,
-        "predictor": "kalman", "handover": "hold", "contact_model": "all", "seed": args.seed,
-        "travel_gains": list(TRAVEL_GAINS), "contact_gains": list(CONTACT_GAINS),
+        "predictor": "kalman", "handover": "hold", "contact_model": cm, "seed": args.seed,
+        "servo": "the system's servo step: gains file, guard, travel limiter (vishap.runtime.assembly)",
     }
     record["charts"] = charts
     record["wall_time_s"] = time.perf_counter() - t_start
@@ -367,7 +370,7 @@ def _plot_policies(policies, path):
         sp = np.array(policies[k]["speeds"])
         e = np.array(policies[k]["errors_mm"])
         us = np.unique(sp)
-        mark = "default" in k
+        mark = "system" in k
         a2.plot(us, [np.mean(e[sp == u] <= 1.0) for u in us], "o-", lw=2.5 if mark else 1.0,
                 alpha=1.0 if mark else 0.55, label=f"{k}: {np.mean(e <= 1.0):.0%}")
     a2.set_xlabel("peak finger speed (m/s)")

@@ -2,8 +2,9 @@
 
 Batch mode (default) simulates the whole system on a simulated clock: pyrender stereo frames of a
 scripted finger → vision → registration → world → MuJoCo device → tactile layer, writing the
-video, plots, ``log.npz`` and ``summary.json`` into ``--out``. ``--live`` runs the same pipeline on
-cameras and a real device, and says what is missing when they are not there.
+video, plots, ``log.npz`` and ``summary.json`` into ``--out``. ``--live`` runs the same core on a real
+clock, fed by cameras or a recording, with the simulated or a real device, and says what is missing
+when something is not there; it writes the same outputs (but the video).
 """
 from __future__ import annotations
 
@@ -60,10 +61,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-video", action="store_true", help="skip the MP4 (faster)")
     p.add_argument("--no-frames", action="store_true",
                    help="do not keep the lossless frames (≈ 0.3 MB per pair at 480x360; replay needs them)")
-    p.add_argument("--live", action="store_true", help="run on cameras and a real device")
-    p.add_argument("--cameras", default="0,1", help="live: camera indices LEFT,RIGHT or one side-by-side index")
-    p.add_argument("--rig", default=None, help="live: stereo rig file (default calib/rig.yaml)")
-    p.add_argument("--device", default=None, help="live: haptic device driver name")
+    p.add_argument("--live", action="store_true",
+                   help="run the same core on a real clock, fed by cameras or a recording (--cameras)")
+    p.add_argument("--cameras", default="cam:0,1",
+                   help="live: a source spec as 'vishap track' takes it: cam:0,1 | cam:0 | LEFT,RIGHT videos | "
+                        "sbs:VIDEO | a recorded folder (e.g. a 'vishap synth' output); bare indices 0,1 mean cameras")
+    p.add_argument("--rig", default=None, help="live: stereo rig file (default: the recorded folder's, else calib/rig.yaml)")
+    p.add_argument("--device", default="sim",
+                   help="live: 'sim' (the MuJoCo PHANToM; its finger pad follows the source's ground truth or the "
+                        "tracked finger) or a driver 'module:Class' (default sim)")
     p.add_argument("--duration", type=float, default=30.0, help="live: seconds to run (default 30)")
     p.set_defaults(func=_run)
 
@@ -72,8 +78,11 @@ def _run(args: argparse.Namespace) -> int:
     if args.live:
         from vishap.apps.live import run_live
 
+        fields = {"seed": args.seed, "scene_hz": args.scene_hz, "save_frames": not args.no_frames, **args.travel}
+        if args.contact_model is not None:
+            fields["contact_model"] = args.contact_model
         summary = run_live(args.scene, out=args.out, cameras=args.cameras, calib=args.calib, rig=args.rig,
-                           device=args.device, duration_s=args.duration)
+                           device=args.device, duration_s=args.duration, **fields)
     else:
         from vishap.apps import run_demo
         from vishap.apps.config import DemoConfig

@@ -1,14 +1,12 @@
-"""Clocks: one interface for simulated (batch, faster than real time) and real (live) time.
+"""The simulated clock of batch runs, replay and benchmarks.
 
 Algorithms never read the wall clock; loops ask a clock. ``SimClock`` advances only when told,
-so a batch run is deterministic and as fast as the machine allows. ``RealClock`` reads
-``time.monotonic`` (seconds since its own start).
+so a batch run is deterministic and as fast as the machine allows. Live runs take their time from
+the servo process's timer (:meth:`vishap.runtime.live.LiveServo.now`).
 """
 from __future__ import annotations
 
-import time
-
-__all__ = ["SimClock", "RealClock"]
+__all__ = ["SimClock"]
 
 
 class SimClock:
@@ -32,13 +30,3 @@ class SimClock:
             raise ValueError(f"SimClock.advance: n must be >= 0, got {n}")
         self.ticks += int(n)
         return self.now()
-
-
-class RealClock:
-    """Monotonic wall time in seconds since the clock was created."""
-
-    def __init__(self):
-        self._t0 = time.monotonic()
-
-    def now(self) -> float:
-        return time.monotonic() - self._t0

@@ -8,7 +8,8 @@ period (simulated plants keep their own time consistent with the wall clock).
 
 The servo object is built *inside* the child by ``make_servo()`` (a picklable callable, e.g. a
 ``functools.partial`` of a module-level function) and must offer
-``step(t: float, target: ndarray) -> ndarray`` returning ``state_size`` floats.
+``step(t: float, target: ndarray) -> ndarray`` returning ``state_size`` floats, and may offer
+``finish() -> object`` (called once after the loop; its result comes back in the report).
 """
 from __future__ import annotations
 
@@ -37,6 +38,7 @@ class LiveServoReport:
     steps: int
     error: str | None = None
     lateness_s: np.ndarray | None = None   # every tick's lateness, for charts
+    result: object = None                  # what the servo object's ``finish()`` returned (if it has one)
 
 
 def _servo_main(make_servo, period, priority, cpu, target_name, target_size, state_name, state_size,
@@ -76,6 +78,7 @@ def _servo_main(make_servo, period, priority, cpu, target_name, target_size, sta
             step_us_median=float(np.median(costs[: min(n, costs.shape[0])]) * 1e6) if n else float("nan"),
             steps=n,
             lateness_s=stats.values.copy(),
+            result=servo.finish() if hasattr(servo, "finish") else None,
         )
         targets.close(unlink=False)
         states.close(unlink=False)

@@ -59,6 +59,10 @@ class TargetGuard:
         self._lo = tuple(float(v) for v in self.box_lo)
         self._hi = tuple(float(v) for v in self.box_hi)
         self._retreat = tuple(float(v) for v in self.retreat_point)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the last good target and any fault in progress (the counts stay)."""
         self._good = list(self._retreat)  # last good target (before any input: the retreat point)
         self._active: Fault | None = None
         self._trouble_since: float | None = None

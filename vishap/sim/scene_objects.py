@@ -15,18 +15,19 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from vishap._core.config import read_mapping
 from vishap._core.errors import ConfigError
 from vishap.sim.device import TABLE_Z_M
+from vishap.world.scene import SCENES_DIR
 
 __all__ = ["SCENES_DIR", "SCENE_NAMES", "SceneSpec", "load_scene_spec", "object_meshes", "opening_half_extent"]
 
-SCENES_DIR = Path(__file__).resolve().parents[2] / "datasets" / "synthetic" / "scenes"
 SCENE_NAMES = ("wall", "button", "fabric")
 
 
 @dataclass(frozen=True)
 class SceneSpec:
+    """What the renderer draws of a scene (derived from the validated :class:`vishap.world.scene.Scene`)."""
+
     name: str
     path: Path
     surface_z_m: float                         # height of the touched surface, robot frame
@@ -35,40 +36,29 @@ class SceneSpec:
     passive_shape: str
     passive_size_m: tuple[float, float, float]
     kind: str
+    passive_mount_offset_m: tuple[float, float, float]  # top face centre = end-effector + this
     travel_m: float = 0.0                      # key travel (button), 0 otherwise
-    raw: dict | None = None
 
 
 def load_scene_spec(name_or_path: str | Path) -> SceneSpec:
-    """Read a scene file (a name in ``datasets/synthetic/scenes`` or a path) for drawing."""
-    p = Path(name_or_path)
-    if not p.suffix:
-        p = SCENES_DIR / f"{name_or_path}.yaml"
-        if not p.is_file():
-            known = sorted(q.stem for q in SCENES_DIR.glob("*.yaml"))
-            raise ConfigError(f"unknown scene {str(name_or_path)!r}; expected one of {known} or a .yaml file", field="scene")
-    data = read_mapping(p)
-    try:
-        obj = data["objects"][0]
-        kind = str(obj["kind"])
-        po = data.get("passive_object") or {"shape": "plate", "size_m": [0.04, 0.04, 0.003]}
-        if kind == "button":
-            centre = tuple(float(v) for v in obj["position"])
-            extent = (float(obj["width_m"]), float(obj["height_m"]))
-            surface = centre[2]
-        else:
-            centre = tuple(float(v) for v in obj["centre"])
-            extent = tuple(float(v) for v in obj["extent_m"])
-            surface = float(obj.get("offset_m", centre[2]))
-        normal = np.asarray(obj.get("normal", [0, 0, 1]), dtype=float)
-    except (KeyError, IndexError, TypeError, ValueError) as exc:
-        raise ConfigError(f"scene is missing or has a malformed entry ({exc!r})", file=p, field="objects.0") from None
-    if not np.allclose(normal / np.linalg.norm(normal), [0, 0, 1], atol=1e-6):
-        raise ConfigError("the renderer draws horizontal objects only (normal [0, 0, 1])", file=p, field="objects.0.normal")
+    """Read a scene file (a name in ``datasets/synthetic/scenes`` or a path) for drawing.
+
+    The file goes through the one scene schema (:func:`vishap.world.scene.load_scene`), so the
+    renderer draws exactly the scene the world, the device and the servo use.
+    """
+    from vishap.world.scene import load_scene
+
+    scene = load_scene(name_or_path)
+    obj = scene.objects[0]
+    path = Path(scene.file) if scene.file else Path(str(name_or_path))
+    if not np.allclose(obj.normal, [0, 0, 1], atol=1e-6):
+        raise ConfigError("the renderer draws horizontal objects only (normal [0, 0, 1])", file=path, field="objects.0.normal")
+    po = scene.passive_object
     return SceneSpec(
-        name=str(data.get("name", p.stem)), path=p, surface_z_m=surface, centre_robot=centre,
-        extent_m=extent, passive_shape=str(po["shape"]), passive_size_m=tuple(float(v) for v in po["size_m"]),
-        kind=kind, travel_m=float(obj.get("travel_m", 0.0)), raw=data,
+        name=scene.name, path=path, surface_z_m=float(obj.centre[2]), centre_robot=tuple(float(v) for v in obj.centre),
+        extent_m=tuple(float(2.0 * h) for h in obj.half), passive_shape=po.shape,
+        passive_size_m=tuple(float(v) for v in po.size_m), kind=obj.kind,
+        travel_m=float(getattr(obj.spec, "travel_m", 0.0)), passive_mount_offset_m=tuple(po.mount_offset_m),
     )
 
 

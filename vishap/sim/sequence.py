@@ -133,7 +133,8 @@ def prepare(spec: SequenceSpec) -> Prepared:
 
     spec.validate()
     scene = load_scene_spec(spec.scene)
-    passive = PassiveObject(shape=scene.passive_shape, size_m=scene.passive_size_m)
+    passive = PassiveObject(shape=scene.passive_shape, size_m=scene.passive_size_m,
+                            mount_offset_robot=scene.passive_mount_offset_m)
     tspec, tfile = load_trajectory(spec.trajectory or scene.name)
     if scene.name not in tspec.scenes:
         raise ConfigError(f"trajectory {tspec.name!r} is written for scenes {tspec.scenes}, not {scene.name!r}",

@@ -9,6 +9,10 @@ surface faster than the slip speed, concentrated otherwise) and starts the conti
 amplitude ramp, so texture reaches the skin when contact happens instead of a ramp later.
 A decelerating finger (a near-miss that stops short) predicts no contact; a pre-arm not followed by
 contact within ``prearm_timeout_s`` is dropped and counted as false.
+
+The stream is what the system knows of the finger (:func:`vishap.apps.cycle.contact_sample`): before
+contact the tracked finger (the world's prediction, extrapolated to the tick), in contact the device
+it drags; never the simulated finger itself.
 """
 from __future__ import annotations
 

@@ -41,7 +41,8 @@ class _Frame:
 
 class SequenceReader:
     """Reads the folder layout ``vishap synth`` writes (``rig.yaml``, ``left/``, ``right/``,
-    ``labels/left|right/``, ``gt.npz``); used when :mod:`vishap.sim.reader` is not importable."""
+    ``labels/left|right/``, ``gt.npz``). Vision reads recordings itself: it never imports the
+    simulator (:mod:`vishap.sim` builds on vision, not the other way round)."""
 
     def __init__(self, folder: str | os.PathLike):
         self.folder = Path(folder)
@@ -52,13 +53,20 @@ class SequenceReader:
         gt_path = self.folder / "gt.npz"
         self.gt = dict(np.load(gt_path, allow_pickle=False)) if gt_path.is_file() else {}
         self.T_robot_cam = self.gt.get("T_robot_cam")
+        if "t" in self.gt and len(self.gt["t"]) != len(self._left):
+            raise VisionError(f"{self.folder}: {len(self._left)} images in left/ but {len(self.gt['t'])} frames in gt.npz")
 
     def __len__(self) -> int:
         return len(self._left)
 
     def __getitem__(self, i: int) -> _Frame:
         name = self._left[i].name
-        read = lambda p, flag=cv2.IMREAD_COLOR: cv2.imread(str(p), flag)
+        def read(p, flag=cv2.IMREAD_COLOR):
+            img = cv2.imread(str(p), flag)
+            if img is None and flag == cv2.IMREAD_COLOR:
+                raise VisionError(f"{p}: missing or unreadable image")
+            return img
+
         t = float(self.gt["t"][i]) if "t" in self.gt else float(i)
         lab = self.folder / "labels"
         return _Frame(i, t, read(self._left[i]), read(self.folder / "right" / name),
@@ -70,12 +78,8 @@ class SequenceReader:
 
 
 def open_sequence(folder):
-    """A synthetic sequence: :class:`vishap.sim.reader.SyntheticSequence` when available."""
-    try:
-        from vishap.sim.reader import SyntheticSequence
-    except ImportError:
-        return SequenceReader(folder)
-    return SyntheticSequence(folder)
+    """A recorded sequence folder (the layout ``vishap synth`` writes)."""
+    return SequenceReader(folder)
 
 
 def segmentation_ratios(mask: np.ndarray, labels: np.ndarray, skin_label: int = 1) -> np.ndarray:

@@ -7,11 +7,9 @@ through :meth:`MujocoPlant.apply_tip_force`. A simulated camera (:class:`VisionM
 fingertip at the vision rate with latency, noise and drop-outs; the :class:`~vishap.world.World`
 turns each sample into ``X_d``; the servo (:class:`vishap.robot.servo.ServoLoop`) runs at 1 kHz.
 
-Contact rendering follows Eq. 8–9: while the device is under the subject's surface (and the world
-announces an imminent or current interaction) the object gain ``ᴼΛ`` sets λ_z = 0 and the force
-law enters as the servo's extra force; once pushed in deeper than ``engage_m`` the lateral gains
-take the mode's ``contact_gain`` (0 for a wall: the finger drags the device, sliding is free) —
-all decided by :meth:`World.contact_render`.
+The system runs as it does in the demo and live mode: the camera model's samples go through the
+core's scene step and servo step (:mod:`vishap.runtime.core`: guard, force law and object gain
+``ᴼΛ`` per Eq. 8–9, controller with the gains file's gains, travel limiter).
 
 Per approach we measure (:class:`ApproachResult`): the contact time (the pad first touches the
 passive object, or the finger crosses the surface if it misses), whether the device was in place
@@ -108,28 +106,15 @@ class ApproachResult:
     log: dict | None = None
 
 
-#: servo gains (Kp N/m, Kv N·s/m) while the device travels to X_d, and while the subject's law renders
-#: contact. Both lie in the robot's measured stable region (``vishap/robot/gains.yaml``); the travel
-#: gains were also checked with ``vishap.robot.stability`` under a 1 ms transport delay, both sensors,
-#: in free space and against 800/1000 N/m walls (stable; Kp 2400+ or Kv ≥ 45 at Kp 1600 oscillate).
-TRAVEL_GAINS = (1600.0, 32.0)
-CONTACT_GAINS = (800.0, 32.0)
+def make_device(scene: Scene, *, substeps: int = 1, policy: str = "interpolate", travel: bool = True):
+    """The MuJoCo PHANToM carrying the scene's passive object behind the system's guarded servo step
+    (:func:`vishap.runtime.assembly.make_servo_step`: gains from the gains file, limits from the
+    device, the travel limiter at its defaults unless ``travel`` is False)."""
+    from vishap.robot.travel import TravelLimiter
+    from vishap.runtime.assembly import make_servo_step, open_device
 
-
-def make_device(scene: Scene, *, substeps: int = 1, ramp_s: float = 0.05, gains: tuple[float, float] = TRAVEL_GAINS):
-    """A MuJoCo PHANToM carrying the scene's passive object, with its servo loop: the robot's
-    :func:`~vishap.robot.build.build_servo` (gains checked against the stable region, the device's
-    wall-stiffness limit) at ``gains`` = (Kp, Kv)."""
-    from vishap.robot.build import build_servo
-    from vishap.robot.controller import Gains
-    from vishap.robot.mjcf import PassiveObject
-
-    po = scene.passive_object
-    shape = "sphere" if po.shape == "sphere" else "plate"
-    size = (po.size_m[0] / 2,) if shape == "sphere" else tuple(po.size_m)
-    servo = build_servo(PassiveObject(shape, size, po.mass_kg), substeps=substeps,
-                        gains=Gains(kp=gains[0], kv=gains[1], ramp_s=ramp_s))
-    return servo.device, servo.controller, servo
+    dev = open_device("sim", passive_object=scene.passive_object.for_mujoco(), substeps=substeps)
+    return make_servo_step(dev, scene, policy=policy, travel=TravelLimiter() if travel else None)
 
 
 def run_approach(
@@ -144,34 +129,35 @@ def run_approach(
     substeps: int = 1,
     stop_after_contact_s: float | None = None,
     record: bool = False,
-    device=None,
-    gains: tuple[tuple[float, float], tuple[float, float]] = (TRAVEL_GAINS, CONTACT_GAINS),
+    step=None,
 ) -> ApproachResult:
     """Simulate one approach–press–slide–leave; ``stop_after_contact_s`` ends it early.
 
-    ``gains`` = ((Kp, Kv) while travelling, (Kp, Kv) while the law renders contact).
+    The camera model is the core's source: its samples (robot frame, the pad point) go through the
+    system's scene step (:class:`~vishap.runtime.core.SceneStep`) and servo step (guard, force law
+    and Λ, controller, travel limiter); ``step`` is a servo step from :func:`make_device` to reuse.
     """
     from vishap.robot import kinematics
-    from vishap.robot.controller import Gains
+    from vishap.runtime.core import SceneStep
 
     rng = np.random.default_rng(seed)
     pad = pad or FingerPad()
-    plant, ctrl, servo = device or make_device(scene, substeps=substeps)
+    step = step or make_device(scene, substeps=substeps)
+    plant, ctrl, servo = step.device, step.controller, step.servo
     world.reset()
+    scene_step = SceneStep(world, np.eye(4), tip_radius_m=0.0, mount_offset=scene.passive_object.mount_offset_m)
     obj = scene.object(traj.object_name)
     dt = plant.dt
-    l1, l2 = plant.params.l1, plant.params.l2
-    half = 0.5 * min(scene.passive_object.size_m[:2])
+    half = scene.passive_object.half_size_m
     p_start = traj.position(0.0)
-    it = world.update(-1.0 / vision.rate_hz, p_start)
-    X_d = it.X_d
-    plant.reset(kinematics.ik(X_d + obj.normal * 0.002, plant.params))
-    ramp = ctrl.gains.ramp_s
-    g_travel, g_contact = (Gains(kp=g[0], kv=g[1], ramp_s=ramp) for g in gains)
-    ctrl.set_gains(g_travel)
+    rec, _, _ = scene_step.step(-1.0 / vision.rate_hz, True, p_start, 1.0, None)
+    plant.reset(kinematics.ik(np.asarray(rec.X_ee) + obj.normal * 0.002, plant.params))
     ctrl.reset()
     ctrl.set_lambda(None)
     servo.shaper.reset()
+    if servo.travel is not None:
+        servo.travel.ready = False
+    step.reset()
 
     n_ticks = int(math.ceil(traj.duration / dt))
     if stop_after_contact_s is not None:
@@ -180,8 +166,6 @@ def run_approach(
     V_f = np.gradient(P_f, dt, axis=0)
     t_next_cam = 0.0
     pending: list[tuple[float, float, np.ndarray | None]] = []  # (arrival, capture time, measurement)
-    pressed_state = False  # contact gains in use
-    lam_state = None  # the object gain in use: None (identity, free motion) or a diagonal
     dev = np.empty((n_ticks, 3))
     subj = np.empty(n_ticks, dtype=object)
     f_n = np.zeros(n_ticks)
@@ -192,6 +176,8 @@ def run_approach(
     t_contact, k_contact = None, 0
     touched = False
     cost = 0.0
+    names = [o.name for o in scene.objects]
+    nan3 = np.full(3, np.nan)
     for k in range(n_ticks):
         t = k * dt
         # camera: capture now, deliver after the latency
@@ -200,33 +186,18 @@ def run_approach(
             meas = None if rng.random() < vision.dropout else p_true + rng.normal(0.0, vision.noise_m, 3)
             pending.append((t + vision.latency_s, t, meas))
             t_next_cam += 1.0 / vision.rate_hz
-        q1, q2, q3, w1, w2, w3 = plant.read_scalar()
-        px, py, pz, vx, vy, vz = kinematics.tip_state_scalar(q1, q2, q3, w1, w2, w3, l1, l2)
-        p_dev = np.array([px, py, pz])
-        v_dev = np.array([vx, vy, vz])
+        state, p_dev = step.read()
         while pending and pending[0][0] <= t + 1e-12:
             _, t_cap, meas = pending.pop(0)
-            it = world.update(t_cap, meas, p_dev)
-            X_d = it.X_d
+            rec, _, _ = scene_step.step(t_cap, meas is not None, nan3 if meas is None else meas,
+                                        0.0 if meas is None else 1.0, p_dev)
         # the finger pushes on the passive object
         p_f, v_f = P_f[k], V_f[k]
-        s = world.subject or obj
-        F_pad = pad.force_on_device(p_f, v_f, p_dev, v_dev, s.normal, half)
+        s = scene.objects[rec.subject] if rec.subject >= 0 else obj
+        F_pad = pad.force_on_device(p_f, v_f, p_dev, state.v_robot, s.normal, half)
         plant.apply_tip_force(F_pad)
         c0 = perf_counter()
-        # the subject's law renders contact while the device is under its surface (Eq. 8-9)
-        F_law, lam, R = world.contact_render(p_dev, v_dev, it)
-        pressed = lam is not None and world.law.depth(p_dev) > world.engage_m
-        if pressed != pressed_state:  # travel gains until the finger pushes the device in
-            ctrl.set_gains(g_contact if pressed else g_travel)
-            ctrl.set_lambda(lam, None if lam is None else R)
-            pressed_state = pressed
-        if lam != lam_state:
-            ctrl.set_lambda(lam, None if lam is None else R)
-            if lam is None and world.law is not None:
-                world.law.reset()
-            lam_state = lam
-        servo.tick(t, X_d, F_law)
+        step.tick(t, rec, state)
         cost += perf_counter() - c0
         F = ctrl.F_pd
         nrm = s.normal
@@ -234,8 +205,8 @@ def run_approach(
         f_t[k] = math.sqrt(max(F[0] * F[0] + F[1] * F[1] + F[2] * F[2] - f_n[k] * f_n[k], 0.0))
         d_f[k] = -obj.height(p_f)
         dev[k] = p_dev
-        xd_log[k] = X_d
-        subj[k] = world.subject.name if world.subject is not None else ""
+        xd_log[k] = np.asarray(rec.X_ee) + step.mount
+        subj[k] = names[rec.subject] if rec.subject >= 0 else ""
         touching[k] = bool(F_pad.any())
         if t_contact is None and (touching[k] or d_f[k] >= 0.0):
             t_contact, touched = t, bool(touching[k])

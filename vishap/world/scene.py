@@ -62,6 +62,28 @@ class PassiveObject(Schema):
     shape: Literal["plate", "key", "sphere"]
     size_m: tuple[Positive, Positive, Positive]
     mass_kg: Positive
+    #: the object's top face is centred at ``ee + mount_offset_m`` (robot frame): a short bracket holds
+    #: it off the end-effector, whose forearm would otherwise stand where the finger touches
+    mount_offset_m: Vec3
+
+    def for_mujoco(self):
+        """The :class:`vishap.robot.mjcf.PassiveObject` the plant carries (a sphere by its radius)."""
+        from vishap.robot.mjcf import PassiveObject as Mj
+
+        if self.shape == "sphere":
+            return Mj("sphere", (self.size_m[0] / 2,), self.mass_kg)
+        return Mj("plate", tuple(self.size_m), self.mass_kg)
+
+    def for_renderer(self):
+        """The :class:`vishap.sim.state.PassiveObject` the synthetic renderer draws."""
+        from vishap.sim.state import PassiveObject as Drawn
+
+        return Drawn(shape=self.shape, size_m=tuple(self.size_m), mount_offset_robot=tuple(self.mount_offset_m))
+
+    @property
+    def half_size_m(self) -> float:
+        """Half the smaller side of the top face (where a finger pad can press)."""
+        return 0.5 * min(self.size_m[:2])
 
 
 class _Object(Schema):

@@ -18,12 +18,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from vishap._core.motion import min_jerk
+from vishap.robot.params import WORKSPACE_MAX, WORKSPACE_MIN
 from vishap.world.scene import Scene, SceneObject
 
 __all__ = ["FingerTrajectory", "make_approaches", "min_jerk"]
 
-REACH_MIN = np.array([0.10, -0.065, -0.20])
-REACH_MAX = np.array([0.30, 0.065, -0.04])
+REACH_MIN = np.array(WORKSPACE_MIN)  # the device's workspace box (robot params)
+REACH_MAX = np.array(WORKSPACE_MAX)
 
 
 @dataclass

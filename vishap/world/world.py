@@ -15,8 +15,8 @@ At vision rate, :meth:`World.update` takes the fingertip in the robot frame and
 5. routes the device around objects: if the straight path from the device to ``X_d`` would cut
    through any object's solid, ``X_d`` becomes a way-point above the obstacles.
 
-At servo rate (1 kHz), :meth:`World.force_robot` evaluates the subject's force law only
-(:mod:`~vishap.world.force_laws`).
+The subject's force law is rendered at servo rate by the servo step
+(:class:`vishap.runtime.core.ContactRenderer`), from the subject and flags the world announces.
 """
 from __future__ import annotations
 
@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vishap._core.check import as_array
-from vishap.world.force_laws import DEFAULT_MAX_FORCE_N, make_law
 from vishap.world.predictor import MeetingPoint, PathExtrapolator, ReachFit, contact_point, make_predictor
 from vishap.world.scene import Scene, SceneObject
 
@@ -34,9 +33,6 @@ __all__ = ["Interaction", "World", "HANDOVERS"]
 HANDOVERS = ("hold", "blend", "track")
 CONTACT_MODELS = ("ray", "path", "both", "reach", "all")
 _UP = np.array([0.0, 0.0, 1.0])
-_ZERO3 = np.zeros(3)
-_EYE3 = np.eye(3)
-_SHALLOW = (1.0, 1.0, 0.0)
 
 
 @dataclass
@@ -46,6 +42,8 @@ class Interaction:
     ``depth`` is the fingertip's depth under the subject's surface (m; negative above it);
     ``normal`` the subject's outward unit normal (robot frame); ``X_d`` the device target (robot
     frame, m); ``via`` is True when ``X_d`` is a detour way-point rather than the contact target.
+    ``finger``/``finger_velocity`` are the predicted fingertip (robot frame) at ``finger_t`` — what
+    the system knows of the finger between two samples (None before the predictor is ready).
     """
 
     t: float
@@ -60,6 +58,9 @@ class Interaction:
     predicted_contact: np.ndarray | None = None
     time_to_contact_s: float | None = None
     via: bool = False
+    finger: np.ndarray | None = None
+    finger_velocity: np.ndarray | None = None
+    finger_t: float | None = None
 
 
 class World:
@@ -70,7 +71,7 @@ class World:
     finger sample when it arrives: the prediction is made for ``t + latency_s``), ``imminent_m``,
     ``hysteresis_m``, ``hold_m``, ``horizon_s`` (furthest look-ahead), ``heading_horizon_s``
     (furthest look-ahead of the object the finger heads for), ``contact_margin_m``,
-    ``path_margin_m`` and ``clearance_m`` for routing, ``max_force_n`` for the laws, ``contact_model``
+    ``path_margin_m`` and ``clearance_m`` for routing, ``contact_model``
     (``ray``: the predicted straight-line motion meets the surface; ``path``: the recent path is
     extrapolated in height; ``both``: the two fused by their variances; ``reach``: a minimum-jerk
     reach fitted to the samples, :class:`~vishap.world.predictor.ReachFit`; ``all``: ray, path and
@@ -92,7 +93,6 @@ class World:
         contact_margin_m: float = 0.0,
         path_margin_m: float = 0.003,
         clearance_m: float = 0.01,
-        max_force_n: float = DEFAULT_MAX_FORCE_N,
         contact_model: str = "all",
         engage_m: float = 0.0003,
     ):
@@ -100,7 +100,6 @@ class World:
             raise ValueError(f"contact_model must be one of {CONTACT_MODELS}, got {contact_model!r}")
         self.contact_model = contact_model
         self.engage_m = float(engage_m)
-        self.heading_confirm = 1  # updates in a row the finger must head for an object to switch to it
         self.path = PathExtrapolator()
         self.reach = ReachFit()
         if handover not in HANDOVERS:
@@ -115,7 +114,6 @@ class World:
         self.moving_m_s = 0.05  # finger speed above which a subject chosen by heading is kept
         self.path_margin_m, self.clearance_m = float(path_margin_m), float(clearance_m)
         self.meeting = MeetingPoint()
-        self.laws = {o.name: make_law(o, max_force_n=max_force_n) for o in scene.objects}
         tops = [o.centre + o.R[:, :2] @ (o.half * np.array(s)) for o in scene.objects for s in
                 ((1, 1), (1, -1), (-1, 1), (-1, -1))]
         self.z_safe = float(max(p[2] for p in tops)) + self.clearance_m
@@ -123,14 +121,12 @@ class World:
 
     def reset(self) -> None:
         self.subject: SceneObject | None = None
-        self.law = None
         self.held: np.ndarray | None = None
         self.X_d: np.ndarray | None = None
         self.p_meas: np.ndarray | None = None  # the latest measured fingertip
         self.meeting.reset()
         self.path.reset()
         self.reach.reset()
-        self._heading: str | None = None
         self._by_heading = False
         if hasattr(self.predictor, "reset"):
             self.predictor.reset()
@@ -185,7 +181,8 @@ class World:
             X = routed
         self.X_d = X
         return Interaction(t, subj.name, subj.mode_name, X.copy(), depth, imminent, in_contact,
-                           subj.normal.copy(), distances, c, tau, via)
+                           subj.normal.copy(), distances, c, tau, via, np.array(p, float), np.array(v, float),
+                           t + self.latency_s)
 
     def _heading_to(self, p, v) -> SceneObject | None:
         """The object whose surface patch the finger's straight-line motion meets first (or None)."""
@@ -205,8 +202,7 @@ class World:
             return self._set_subject(best)
         if distances[cur.name] <= self.contact_margin_m:
             return cur  # never switch while touching the current subject
-        prev, self._heading = self._heading, None if heading is None else heading.name
-        if heading is not None and heading is not cur and (prev == heading.name or self.heading_confirm == 1):
+        if heading is not None and heading is not cur:
             self._set_subject(heading)
             self._by_heading = True
             return heading
@@ -223,9 +219,6 @@ class World:
         if obj is not self.subject:
             self.subject, self.held = obj, None
             self.meeting.reset()
-            if self.law is not None:
-                self.law.reset()
-            self.law = self.laws[obj.name]
         return obj
 
     def _touch_confirmed(self, subj: SceneObject, p_robot_device) -> bool:
@@ -293,35 +286,3 @@ class World:
             for o in self.scene.objects
             if not o.segment_hits(a, a, margin=0.0, top_clearance=-0.0005)
         )
-
-    # -- servo rate --------------------------------------------------------------------------------
-    def force_robot(self, p_robot_device, v_robot_device=None) -> np.ndarray:
-        """The current subject's force law at the device contact point (robot frame, N)."""
-        if self.law is None:
-            return np.zeros(3)
-        return self.law.force_robot(p_robot_device, _ZERO3 if v_robot_device is None else v_robot_device)
-
-    def contact_render(self, p_robot_device, v_robot_device, interaction: Interaction | None):
-        """Servo-rate contact rendering (Eq. 8–9): ``(F_law or None, ᴼΛ diagonal or None, R_robot_obj)``.
-
-        The law acts while the world announces an imminent or current interaction and the device is
-        under the subject's surface; λ_z is then 0 (the law gives the normal force). The mode's
-        lateral gains (``contact_gain``) apply only once the device is pushed in deeper than
-        ``engage_m`` — a device sagging a hair below the surface while it waits keeps its lateral
-        servo. ``None`` for Λ means the identity (free motion); call ``law.reset()`` when leaving.
-        """
-        law = self.law
-        if law is None or interaction is None or not (interaction.imminent or interaction.in_contact):
-            return None, None, _EYE3
-        depth = law.depth(p_robot_device)
-        if depth <= 0.0:
-            return None, None, _EYE3
-        F = law.force_robot(p_robot_device, _ZERO3 if v_robot_device is None else v_robot_device)
-        lam = law.lambda_contact if depth > self.engage_m else _SHALLOW
-        return F, lam, self.subject.R
-
-    def contact_gain(self) -> tuple[tuple[float, float, float], np.ndarray]:
-        """(ᴼΛ diagonal, R_robot_obj) for the servo while the subject's law renders contact (Eq. 9)."""
-        if self.subject is None:
-            return (1.0, 1.0, 1.0), np.eye(3)
-        return self.law.lambda_contact, self.subject.R

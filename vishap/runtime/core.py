@@ -1,0 +1,275 @@
+"""The system's core cycle, written once: the scene step and the servo step (VisHap §2.2–2.3).
+
+Every way of running the system drives these two steps — the batch demo (simulated clock,
+in-process hand-over), live mode (real clock, shared-memory mailbox between the vision process
+and the real-time servo process), replay (the log's inputs) and the world benchmark (a camera
+model as the source):
+
+``SceneStep``  (vision rate)  fingertip in camera frame → registration (``T_robot_cam``, Eq. 3) →
+               the pad point → :meth:`World.update` → a :class:`TargetRecord`;
+``ServoStep``  (1 kHz)        the record → :class:`TargetGuard` (track / hold / retreat) →
+               :class:`ContactRenderer` (the subject's force law and the object gain ᴼΛ, Eq. 8–9) →
+               :class:`~vishap.robot.servo.ServoLoop` (controller, device).
+
+The record carries everything the servo needs (end-effector target, capture time, confidence,
+calibration, subject, imminent and in-contact flags) and what the system knows of the finger (the
+world's predicted pad point and velocity), so the servo process never needs the scene's world —
+only its force laws, built from the same scene file. It packs into a flat float array
+(:meth:`TargetRecord.pack`) for the mailbox.
+
+Conventions: the world's ``X_d`` is the contact point on the object's surface; the device controls
+its end-effector, which carries the passive object's top face at ``ee + mount_offset`` (from the
+scene file), so the end-effector target is ``X_d - mount_offset``. Vision locates the centre of the
+fingertip's cap; the world is given the pad point (cap centre minus the cap radius along the
+subject's normal).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vishap.robot.device import DeviceState
+from vishap.robot.kinematics import tip_state_scalar
+from vishap.runtime.safety import TargetGuard
+
+__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "ServoStep", "ServoTick", "GUARD_CODES",
+           "RECORD_SIZE"]
+
+#: the guard's action as logged (``idle``: no finger seen yet, the servo holds the arm where it is)
+GUARD_CODES = {"track": 0, "hold": 1, "retreat": 2, "idle": 3}
+_NAN3 = (math.nan, math.nan, math.nan)
+_EYE3 = np.eye(3)
+#: object gain while the device sags a hair below the surface before the finger pushes it (lateral servo kept)
+_SHALLOW = (1.0, 1.0, 0.0)
+
+
+@dataclass
+class TargetRecord:
+    """One scene-step output for the servo. Positions robot frame (m), times servo clock (s).
+
+    ``seq`` counts records (0: none yet); ``armed`` is false until the first finger estimate (or a
+    calibration fault) arrives — until then the servo holds the arm where it is. ``subject`` is the
+    index of the subject in the scene's objects (−1: none). ``finger``/``finger_velocity`` are the
+    world's estimate of the pad point at ``finger_t`` (NaN when it has none).
+    """
+
+    seq: int = 0
+    X_ee: tuple = _NAN3
+    made_at: float = -math.inf
+    confidence: float = 0.0
+    calibrated: bool = True
+    armed: bool = False
+    subject: int = -1
+    imminent: bool = False
+    in_contact: bool = False
+    finger: tuple = _NAN3
+    finger_velocity: tuple = _NAN3
+    finger_t: float = math.nan
+
+    def pack(self) -> np.ndarray:
+        return np.array([self.seq, *self.X_ee, self.made_at, self.confidence, float(self.calibrated),
+                         float(self.armed), self.subject, float(self.imminent), float(self.in_contact),
+                         *self.finger, *self.finger_velocity, self.finger_t], dtype=np.float64)
+
+    @classmethod
+    def unpack(cls, a) -> TargetRecord:
+        v = [float(x) for x in a]
+        return cls(int(v[0]), tuple(v[1:4]), v[4], v[5], v[6] > 0.5, v[7] > 0.5, int(v[8]), v[9] > 0.5,
+                   v[10] > 0.5, tuple(v[11:14]), tuple(v[14:17]), v[17])
+
+    def finger_at(self, t: float):
+        """The tracked pad point extrapolated to ``t`` and its velocity (NaN when unknown)."""
+        p, v = np.asarray(self.finger, float), np.asarray(self.finger_velocity, float)
+        return p + v * (t - self.finger_t), v
+
+
+RECORD_SIZE = TargetRecord().pack().size
+
+
+class SceneStep:
+    """Registration and world update on the newest fingertip estimate (vision rate)."""
+
+    def __init__(self, world, T_robot_cam, *, tip_radius_m: float, mount_offset):
+        self.world = world
+        self.T = None if T_robot_cam is None else np.asarray(T_robot_cam, float)
+        self.tip_radius_m = float(tip_radius_m)
+        self.mount = np.asarray(mount_offset, float).reshape(3)
+        self.names = [o.name for o in world.scene.objects]
+        self.normal = np.asarray(world.scene.objects[0].normal, float)
+        self.armed = False
+        self.seq = 0
+        self._flags = (-1, False, False)  # subject, imminent, in_contact of the newest interaction
+        self.record = TargetRecord()
+
+    def pad_point(self, p_cam) -> np.ndarray:
+        """Fingertip cap centre (camera frame) → pad point (robot frame)."""
+        T = self.T
+        return np.asarray(p_cam, float) @ T[:3, :3].T + T[:3, 3] - self.tip_radius_m * self.normal
+
+    def step(self, t_sample: float, found: bool, p_cam, confidence: float, p_device, *, calibrated: bool = True):
+        """One estimate captured at ``t_sample`` → ``(record, interaction or None, pad point)``.
+
+        ``p_device`` is the device's contact point (end-effector + mount offset). Without a
+        calibration the record says so (the guard retreats); a lost finger still updates the world
+        (its predictor coasts) once the first finger was seen.
+        """
+        calibrated = calibrated and self.T is not None
+        p_pad = np.full(3, np.nan)
+        inter = None
+        if calibrated:
+            if found and np.all(np.isfinite(p_cam)):
+                p_pad = self.pad_point(p_cam)
+                inter = self.world.update(t_sample, p_pad, p_device)
+            elif not found and self.armed:
+                inter = self.world.update(t_sample, None, p_device)
+        if not self.armed and (not calibrated or found):
+            self.armed = True
+        X = _NAN3
+        finger, v_f, t_f = _NAN3, _NAN3, math.nan
+        if inter is not None:
+            X = tuple(float(x) for x in np.asarray(inter.X_d, float) - self.mount)
+            s = -1 if inter.object_name is None else self.names.index(inter.object_name)
+            self._flags = (s, bool(inter.imminent), bool(inter.in_contact))
+            if inter.finger is not None:
+                finger, v_f = tuple(map(float, inter.finger)), tuple(map(float, inter.finger_velocity))
+                t_f = float(inter.finger_t)
+        self.seq += 1
+        s, imminent, in_contact = self._flags
+        self.record = TargetRecord(self.seq, X, float(t_sample), float(confidence), calibrated, self.armed,
+                                   s, imminent, in_contact, finger, v_f, t_f)
+        return self.record, inter, p_pad
+
+
+class ContactRenderer:
+    """The subject's force law and object gain at the device's contact point (Eq. 8–9).
+
+    The law acts while the record announces an imminent or current interaction, the guard tracks
+    or holds, and the device is under the subject's surface; λ_z is then 0 (the law gives the normal
+    force). The mode's lateral gains apply once the device is pushed in deeper than ``engage_m`` —
+    a device sagging a hair below the surface while it waits keeps its lateral servo. A law is reset
+    when its object stops being the subject and when the contact ends.
+    """
+
+    def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003):
+        from vishap.world.force_laws import make_law
+
+        self.objects = list(objects)
+        self.laws = [make_law(o, max_force_n=max_force_n) for o in self.objects]
+        self.engage_m = float(engage_m)
+        self.subject = -1
+        self.lam = None  # the object gain currently set (None: identity)
+
+    def reset(self) -> None:
+        for law in self.laws:
+            law.reset()
+        self.subject = -1
+        self.lam = None
+
+    @property
+    def law(self):
+        return None if self.subject < 0 else self.laws[self.subject]
+
+    def update(self, p_device, v_device, subject: int, announced: bool):
+        """``(F_law or None, Λ diagonal or None, R_robot_obj, Λ changed)`` for this tick."""
+        if subject != self.subject:
+            if self.subject >= 0:
+                self.laws[self.subject].reset()
+            self.subject = subject
+        law = self.law
+        F, lam, R = None, None, _EYE3
+        if law is not None and announced:
+            depth = law.depth(p_device)
+            if depth > 0.0:
+                F = law.force_robot(p_device, v_device)
+                lam = law.lambda_contact if depth > self.engage_m else _SHALLOW
+                R = self.objects[subject].R
+        changed = lam != self.lam
+        if changed:
+            if lam is None and law is not None:
+                law.reset()
+            self.lam = lam
+        return F, lam, R, changed
+
+
+@dataclass
+class ServoTick:
+    """What one servo step did (for the log and the tactile layer)."""
+
+    action: str
+    X_ee: np.ndarray | None
+    F_law: np.ndarray | None
+    state: object            # the DeviceState read at the start of the tick
+    p_device: np.ndarray     # contact point: end-effector + mount offset
+    fault: object = None
+    extra: dict = field(default_factory=dict)
+
+
+class ServoStep:
+    """Guard → force law and Λ → controller → device: the one place the system renders contact."""
+
+    def __init__(self, servo, guard: TargetGuard, objects, *, mount_offset, engage_m: float = 0.0003):
+        self.servo = servo
+        self.device = servo.device
+        self.controller = servo.controller
+        self.guard = guard
+        self.mount = np.asarray(mount_offset, float).reshape(3)
+        self.contact = ContactRenderer(objects, max_force_n=float(self.device.limits.peak_force_n), engage_m=engage_m)
+        self.last_action = "idle"
+        self._key = None
+        self._retreat_key = None
+        self._read_scalar = self.device.read_scalar
+        self._l1, self._l2 = self.device.params.l1, self.device.params.l2
+        self._tip = tip_state_scalar
+        self._time = lambda: float(self.device.time)
+
+    def reset(self) -> None:
+        """Start a new run on the same device: guard, laws and target keys forgotten."""
+        self.guard.reset()
+        self.contact.reset()
+        self.last_action = "idle"
+        self._key = self._retreat_key = None
+
+    def read(self):
+        """The device state and its contact point (the caller may act on the plant before :meth:`tick`).
+
+        From the device's scalar fast path and the arm's kinematics (as :class:`ServoLoop` reads it),
+        not :meth:`Device.read`, which costs about as much as the rest of the tick.
+        """
+        q1, q2, q3, w1, w2, w3 = self._read_scalar()
+        px, py, pz, vx, vy, vz = self._tip(q1, q2, q3, w1, w2, w3, self._l1, self._l2)
+        p = np.array((px, py, pz))
+        dev = DeviceState(self._time(), np.array((q1, q2, q3)), np.array((w1, w2, w3)), p, np.array((vx, vy, vz)))
+        return dev, p + self.mount
+
+    def tick(self, t: float, rec: TargetRecord, dev=None) -> ServoTick:
+        if dev is None:
+            dev, p_dev = self.read()
+        else:
+            p_dev = np.asarray(dev.p_robot, float) + self.mount
+        fault = None
+        if rec.armed:
+            gx, gy, gz, action, fault = self.guard.decide_scalar(t, *rec.X_ee, rec.made_at, rec.confidence,
+                                                                 rec.calibrated)
+            X_ee = np.array((gx, gy, gz))
+        else:
+            action, X_ee = "idle", None
+        F_law, lam, R, changed = self.contact.update(p_dev, dev.v_robot, rec.subject,
+                                                     (action == "track" or action == "hold")
+                                                     and (rec.imminent or rec.in_contact))
+        if changed:
+            self.controller.set_lambda(lam, None if lam is None else R)
+        # the shaper takes a new sample when its key changes: a new record's capture time while
+        # tracking, the moment a retreat began while retreating, the previous key while holding
+        if action == "track":
+            key = rec.made_at
+        elif action == "retreat":
+            if self.last_action != "retreat":
+                self._retreat_key = t
+            key = self._retreat_key
+        else:
+            key = self._key
+        self._key, self.last_action = key, action
+        self.servo.tick(t, None if key is None else X_ee, F_law, t_sample=key)
+        return ServoTick(action, X_ee, F_law, dev, p_dev, fault)
