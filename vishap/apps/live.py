@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from vishap._core.errors import DeviceError
+from vishap._core.errors import ConfigError, DeviceError
 
 __all__ = ["source_spec", "check_cameras", "check_live", "run_live"]
 
@@ -82,16 +82,12 @@ def check_live(*, cameras: str, rig: str | None, calib: str | None, device: str 
                         "(the simulated calibration calibrates only the simulated cameras and device of a "
                         "recorded synthetic folder; make one with 'vishap calibrate robot')")
     if device != "sim":
-        mod, sep, cls = device.partition(":")
-        if not sep:
-            problems.append(f"haptic device: expected 'sim' or 'module:Class', got {device!r}")
-        else:
-            import importlib
+        from vishap.robot.drivers import resolve
 
-            try:
-                getattr(importlib.import_module(mod), cls)
-            except (ImportError, AttributeError) as exc:
-                problems.append(f"haptic device {device}: cannot load the driver ({exc})")
+        try:
+            resolve(device)
+        except ConfigError as exc:
+            problems.append(f"haptic device: {exc}")
     if problems:
         raise DeviceError("live mode cannot start, missing: " + "; ".join(problems))
     return spec, rig_path, None if calib is None else Path(calib), device

@@ -1,45 +1,20 @@
 """Building the core's servo side the same way in every mode: device, controller, guard, servo step.
 
-:func:`open_device` is the one place a device is constructed from a spec string (``sim``: the
-MuJoCo PHANToM carrying the scene's passive object; ``module:Class``: a driver class outside the
-package). :func:`make_servo_step` puts the controller (gains only from the gains file, limits only
+Devices are opened by name through :func:`vishap.robot.drivers.open_device` (``sim``: the MuJoCo
+PHANToM carrying the scene's passive object; a ``vishap.devices`` entry point; ``module:Class``: a
+driver outside the package), re-exported here. :func:`make_servo_step` puts the controller (gains only from the gains file, limits only
 from the device), the travel limiter and the target guard (the device's workspace box, a retreat
 point under the scene's object's surface, out of the finger's reach) around it.
 """
 from __future__ import annotations
 
-import importlib
-
 import numpy as np
 
-from vishap._core.errors import DeviceError
+from vishap.robot.drivers import open_device
 from vishap.runtime.core import ServoStep
 from vishap.runtime.safety import TargetGuard
 
 __all__ = ["open_device", "make_servo_step"]
-
-
-def open_device(spec: str, **kwargs):
-    """The :class:`~vishap.robot.device.Device` named by ``spec``.
-
-    ``sim`` accepts ``passive_object`` (a :class:`vishap.robot.mjcf.PassiveObject`), ``substeps`` and
-    ``sensor``; a ``module:Class`` driver is called with ``kwargs``.
-    """
-    if spec == "sim":
-        from vishap.robot.gains import load_gains
-        from vishap.robot.plant import MujocoPlant
-
-        _, gains_file = load_gains()
-        return MujocoPlant(passive_object=kwargs.get("passive_object"), substeps=kwargs.get("substeps", 1),
-                           sensor=kwargs.get("sensor", "exact"), max_stiffness_n_m=gains_file.max_stiffness_n_m)
-    mod_name, sep, cls_name = str(spec).partition(":")
-    if not sep or not mod_name or not cls_name:
-        raise DeviceError(f"--device: expected 'sim' or 'module:Class', got {spec!r}")
-    try:
-        cls = getattr(importlib.import_module(mod_name), cls_name)
-    except (ImportError, AttributeError) as exc:
-        raise DeviceError(f"--device {spec}: cannot load the driver ({exc})") from None
-    return cls(**kwargs)
 
 
 def make_servo_step(device, scene, *, policy: str = "interpolate", travel=None, retreat_m: float = 0.02,
