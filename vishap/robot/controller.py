@@ -75,6 +75,9 @@ class Controller:
         self.set_gains(gains)
         self.set_gravity(params)
         self.set_lambda(None)
+        #: multiplies the PD and law force (not gravity compensation): the object-gain scheduler's
+        #: force ramp (vishap.robot.object_gain); 1 leaves the controller as it was
+        self.force_scale = 1.0
         self.reset()
 
     # -- configuration ---------------------------------------------------------------------------
@@ -108,6 +111,7 @@ class Controller:
                 R = np.asarray(R_robot_obj, dtype=np.float64).reshape(3, 3)
                 L = R @ L @ R.T
         self.lambda_clipped = False
+        self._L_src = None
         ms = self.limits.max_stiffness_n_m
         if ms is not None and self._kp > 0:
             lam_max = float(np.max(np.abs(np.linalg.eigvals(L))))
@@ -118,6 +122,26 @@ class Controller:
         self._L = tuple(float(v) for v in L.ravel())
         self._L_identity = bool(np.array_equal(L, np.eye(3)))
         return L
+
+    def set_lambda_robot(self, L) -> None:
+        """Set Λ_gain already in the robot frame (3×3 nested sequence), cheaply, once per tick.
+
+        For the object-gain scheduler's output: unchanged Λ costs one comparison; a Λ whose row sums
+        keep ``λ·Kp`` under the stiffness cap skips the eigenvalue check of :meth:`set_lambda`."""
+        if L is self._L_src:
+            return
+        flat = (L[0][0], L[0][1], L[0][2], L[1][0], L[1][1], L[1][2], L[2][0], L[2][1], L[2][2])
+        ms = self.limits.max_stiffness_n_m
+        bound = max(abs(flat[0]) + abs(flat[1]) + abs(flat[2]), abs(flat[3]) + abs(flat[4]) + abs(flat[5]),
+                    abs(flat[6]) + abs(flat[7]) + abs(flat[8]))
+        if not all(math.isfinite(v) for v in flat) or (ms is not None and bound * self._kp > ms):
+            self.set_lambda(np.array(flat).reshape(3, 3))  # checks and clips (or raises)
+        else:
+            self.lambda_clipped = False
+            self._L = tuple(float(v) for v in flat)
+            self._L_identity = self._L == (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+            self.lambda_robot = np.array(self._L).reshape(3, 3)
+        self._L_src = L
 
     @property
     def thermal_headroom(self) -> float:
@@ -230,6 +254,7 @@ class Controller:
         # ramp-up of everything but gravity compensation
         el = t - self._t0
         s = 1.0 if el >= self._ramp else (el / self._ramp if el > 0.0 else 0.0)
+        s *= self.force_scale
         Fx, Fy, Fz = s * (fpx + fx), s * (fpy + fy), s * (fpz + fz)
         self.F_pd = (Fx, Fy, Fz)
         # Eq. 6–7: F_GC = J⁻ᵀ τ_g (τ_g1 = 0, so no tangential part)
