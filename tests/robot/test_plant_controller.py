@@ -149,3 +149,19 @@ def test_never_nan_or_over_limit(q, target, extra, t, lam):
         assert math.sqrt(sum(v * v for v in F)) <= DEFAULT.peak_force_n * (1 + 1e-12)
         if ctrl.target is not None:
             assert kin.in_workspace(ctrl.target)
+
+
+def test_a_device_outside_the_workspace_is_pushed_back_not_only_its_target():
+    from vishap.robot.kinematics import fk
+
+    ctrl = Controller(gains=Gains(ramp_s=0.0))
+    q = (0.0, 0.2, 0.9)  # forearm swung far out: beyond the box's x limit
+    p = fk(np.array(q))
+    assert p[0] > ctrl.limits.workspace_max[0]
+    # Λ = 0 (the law has the device) and the target where the device is: only the workspace wall acts
+    ctrl.set_lambda((0.0, 0.0, 0.0))
+    ctrl.compute(0.0, *q, 0.0, 0.0, 0.0, *p)
+    assert ctrl.F_pd[0] < -1.0 and ctrl.n_outside == 1
+    # inside the box nothing is added
+    ctrl.compute(0.001, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, *fk(np.zeros(3)))
+    assert ctrl.F_pd == pytest.approx((0.0, 0.0, 0.0), abs=1e-12) and ctrl.n_outside == 1
