@@ -37,11 +37,18 @@ def test_gravity_compensation_holds_still_across_workspace():
         assert drift < 1e-9, (p, drift)
 
 
-def test_without_compensation_the_arm_falls():
-    plant = MujocoPlant(passive_object=PassiveObject(mass_kg=0.012), q0=kin.ik(np.array([0.2, 0.0, -0.1])))
-    for _ in range(300):
-        plant.step()
-    assert np.linalg.norm(plant.read().p_robot - [0.2, 0.0, -0.1]) > 5e-3
+def test_without_compensation_the_arm_falls_unless_friction_holds_it():
+    from dataclasses import replace
+
+    # the PHANToM is nearly balanced: its Coulomb friction (0.04 N at the tip) holds it still
+    # without compensation; with the friction taken out, gravity pulls it away
+    for friction, moved in ((0.0, True), (DEFAULT.coulomb_friction_n, False)):
+        params = replace(DEFAULT, coulomb_friction_n=friction)
+        plant = MujocoPlant(params, passive_object=PassiveObject(mass_kg=0.012), q0=kin.ik(np.array([0.2, 0.0, -0.1])))
+        for _ in range(300):
+            plant.step()
+        drift = np.linalg.norm(plant.read().p_robot - [0.2, 0.0, -0.1])
+        assert (drift > 5e-3) == moved, (friction, drift)
 
 
 def test_pd_reaches_target_and_ramps_up():
@@ -165,3 +172,68 @@ def test_a_device_outside_the_workspace_is_pushed_back_not_only_its_target():
     # inside the box nothing is added
     ctrl.compute(0.001, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, *fk(np.zeros(3)))
     assert ctrl.F_pd == pytest.approx((0.0, 0.0, 0.0), abs=1e-12) and ctrl.n_outside == 1
+
+
+def test_coulomb_friction_at_the_tip_is_about_the_data_sheet_figure():
+    from dataclasses import replace
+
+    from vishap.robot.controller import Controller as _C
+
+    def drift(F, friction):
+        params = replace(DEFAULT, coulomb_friction_n=friction)
+        p0 = np.array([0.215, 0.0, -0.12])
+        plant = MujocoPlant(params, q0=kin.ik(p0), substeps=10)
+        ctrl = _C(plant.params, Gains(kp=0.0, kv=0.0, ramp_s=0.0), limits=plant.limits)  # gravity compensation only
+        for i in range(200):
+            plant.apply_tip_force(F)
+            plant.command_torque_scalar(*ctrl.compute(i * 1e-3, *plant.read_scalar(), *p0))
+            plant.step()
+        return float(np.linalg.norm(plant.tip_position() - p0))
+
+    for axis in np.eye(3):
+        # below the friction the tip only creeps (MuJoCo's friction is a soft constraint)
+        assert drift(0.03 * axis, DEFAULT.coulomb_friction_n) < 3e-4
+        assert drift(0.06 * axis, DEFAULT.coulomb_friction_n) > 1e-3  # above it: it slides
+        assert drift(0.03 * axis, 0.0) > 1e-3  # and without friction even the small force moves it
+
+
+def test_each_amplifier_saturates_at_its_motor_peak_torque():
+    plant = MujocoPlant()
+    a = plant.params.motor_peak_torque_nm
+    plant.command_torque_scalar(a[0] * 1.2, 0.0, -a[2] * 1.5)
+    assert plant.n_amp_saturated == 1
+    assert tuple(plant.data.ctrl) == pytest.approx((a[0], 0.0, -a[2]))
+    # the controller scales τ as a whole so that no motor is asked for more
+    ctrl = Controller(plant.params, Gains(kp=20000.0, kv=0.0, ramp_s=0.0), limits=plant.limits)
+    q = kin.ik(np.array([0.30, 0.06, -0.06]))  # a far reach: the yaw motor needs the largest torque
+    tau = ctrl.compute(0.0, *q, 0.0, 0.0, 0.0, 0.30, -0.06, -0.06)
+    assert all(abs(t) <= m + 1e-12 for t, m in zip(tau, a)) and ctrl.saturated
+
+
+def test_jitter_delays_each_command_inside_the_period():
+    p0 = kin.ik(np.array([0.2, 0.0, -0.12]))
+
+    def response(jitter):
+        plant = MujocoPlant(q0=p0, substeps=10, jitter_s=jitter, seed=1)
+        out = []
+        for _ in range(3):
+            plant.command_torque_scalar(0.0, 0.0, 0.5)
+            plant.step()
+            out.append(plant.read().q[2] - p0[2])
+        return np.array(out)
+
+    prompt, late, very_late = response(None), response([0.0005]), response([0.0025])
+    assert 0 < late[0] < prompt[0]  # half a period late: moved, but less
+    # 2.5 ms: the first command reaches the motors in the third period (before, only creep under gravity)
+    assert np.all(np.abs(very_late[:2]) < 0.02 * prompt[0]) and very_late[2] > 0.1 * prompt[0]
+    with pytest.raises(ValueError, match="jitter_s"):
+        MujocoPlant(jitter_s=[float("nan")])
+
+
+def test_apparent_mass_grows_by_the_carried_object():
+    q = kin.ik(np.array([0.2, 0.0, -0.12]))
+    bare = MujocoPlant().apparent_mass(q)
+    plate = MujocoPlant(passive_object=PassiveObject(mass_kg=0.05)).apparent_mass(q)
+    assert np.all(bare > 0.005) and np.all(bare < 1.0)
+    # a point-like object at the tip adds its mass to every direction (its small rotational inertia aside)
+    assert plate - bare == pytest.approx(np.full(3, 0.05), rel=0.1)

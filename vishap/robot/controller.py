@@ -11,7 +11,8 @@ Per servo tick, in the robot frame:
   transform with ``R`` mapping the device frame to the object frame);
 * the world's force law (``extra``) is added to ``Λ f``; that part ramps up linearly over ``ramp_s``
   after start (gravity compensation is on from the first tick);
-* ``|F|`` is saturated at the peak force, or at the continuous force while a first-order estimate of
+* ``|F|`` is saturated at the peak force (and τ scaled down as a whole where a motor would exceed its
+  peak torque), or at the continuous force while a first-order estimate of
   ``|F|²`` (motor heating, time constant ``thermal_tau_s``) exceeds the continuous force squared;
 * ``τ = Jᵀ F`` (Eq. 6).
 
@@ -106,6 +107,7 @@ class Controller:
         self._peak = float(self.limits.peak_force_n)
         self._cont = float(self.limits.continuous_force_n)
         self._heat_k = self.dt / params.thermal_tau_s
+        self._motor = tuple(float(v) for v in params.motor_peak_torque_nm)
         self.set_gains(gains)
         self.set_gravity(params)
         self.set_lambda(None)
@@ -349,6 +351,17 @@ class Controller:
         Fr = Fx * c1 + Fy * s1
         Ft = -Fx * s1 + Fy * c1
         tau1, tau2, tau3 = r * Ft, ja * Fr + jc * Fz, jb * Fr + jd * Fz
+        # each motor's peak torque (its amplifier's current limit): scale τ as a whole, so the force
+        # keeps its direction rather than being bent by one clipped motor
+        m1, m2, m3 = self._motor
+        sc = min(1.0, m1 / abs(tau1) if abs(tau1) > m1 else 1.0, m2 / abs(tau2) if abs(tau2) > m2 else 1.0,
+                 m3 / abs(tau3) if abs(tau3) > m3 else 1.0)
+        if sc < 1.0:
+            tau1, tau2, tau3 = tau1 * sc, tau2 * sc, tau3 * sc
+            Fx, Fy, Fz = Fx * sc, Fy * sc, Fz * sc
+            if not self.saturated:
+                self.saturated = True
+                self.n_saturated += 1
         if not isf(tau1 + tau2 + tau3):  # only reachable through overflow
             self.n_faults += 1
             self.F_cmd = (0.0, 0.0, 0.0)

@@ -63,10 +63,32 @@ class PhantomParams:
     workspace_min: tuple[float, float, float] = WORKSPACE_MIN
     workspace_max: tuple[float, float, float] = WORKSPACE_MAX
 
-    # dynamics of the simulated arm beyond Cavusoglu's gravity parameters (estimates)
+    # dynamics of the simulated arm beyond Cavusoglu's gravity parameters (estimates: Cavusoglu et
+    # al. give masses and first moments; the inertias are slender rods of the link lengths, and
+    # `apparent_mass_range` says how far the result is from the data sheet's "< 75 g at the tip")
     joint_damping: float = 2.0e-4  # N·m·s/rad, capstan/bearing viscous friction per joint
-    armature: float = 1.0e-4  # kg·m², reflected rotor inertia per joint
+    #: kg·m², reflected rotor inertia of motors 1, 2, 3 (motor 3 drives θ3, the tendon θ2 + elbow)
+    armature: tuple[float, float, float] = (1.0e-4, 1.0e-4, 1.0e-4)
     turret_inertia: float = 2.0e-3  # kg·m², base yaw (θ1) inertia excluding the arm
+    #: kg·m², pitch inertia of the lumped upper arm and forearm about their centres of mass
+    upper_arm_inertia: float = 0.4265 * 0.12**2 / 12.0  # (m_be + m_df) · (0.12 m)² / 12
+    forearm_inertia: float = 0.0451 * 0.170**2 / 12.0  # (m_a + m_c) · l2² / 12
+    #: N, Coulomb (backdrive) friction at the tip — data sheet 0.04 N; applied per joint as the
+    #: torque it takes at the joint's lever (θ1: the nominal radius; θ2: l1; θ3: l2)
+    coulomb_friction_n: float = 0.04
+    #: m, the radius at which the yaw joint's friction torque is taken
+    nominal_radius_m: float = 0.215
+    #: rad, encoder resolution: the data sheet's nominal position resolution 0.03 mm at the nominal radius
+    encoder_resolution_rad: float = 1.5e-4
+    #: N·m, per-motor peak torque (amplifier current limit × torque constant, at the joint): the peak
+    #: force at each joint's lever in the nominal pose (θ1: the nominal radius, θ2: l1, θ3: l2); the
+    #: motors' type is not in the data sheet, so these are the figures the peak force implies
+    motor_peak_torque_nm: tuple[float, float, float] = (8.5 * 0.215, 8.5 * 0.215, 8.5 * 0.170)
+    #: A, amplifier current limits (peak, continuous) and N·m/A, torque constant referred to each joint
+    amp_peak_current_a: float = 6.0
+    amp_continuous_current_a: float = 1.0
+    #: N/m, the data sheet's closed-loop stiffness (3.5 N/mm): no virtual stiffness may exceed it
+    datasheet_stiffness_n_m: float = 3500.0
     servo_rate_hz: float = 1000.0
 
     @property
@@ -111,6 +133,22 @@ class PhantomParams:
         d_f = c3_0 / m_f
         d_u = (c2_0 - m_f * self.l1) / m_u
         return {"upper_arm": (m_u, d_u), "forearm": (m_f, d_f)}
+
+    @property
+    def motor_kt_nm_a(self) -> tuple[float, float, float]:
+        """Torque constant referred to each joint (N·m/A): peak torque at the amplifier's peak current."""
+        return tuple(t / self.amp_peak_current_a for t in self.motor_peak_torque_nm)
+
+    @property
+    def motor_continuous_torque_nm(self) -> tuple[float, float, float]:
+        """Per-motor torque at the amplifier's continuous current (N·m)."""
+        return tuple(k * self.amp_continuous_current_a for k in self.motor_kt_nm_a)
+
+    @property
+    def joint_friction_nm(self) -> tuple[float, float, float]:
+        """Coulomb friction torque of joints θ1, θ2, θ3 (N·m) giving ``coulomb_friction_n`` at the tip."""
+        f = self.coulomb_friction_n
+        return (f * self.nominal_radius_m, f * self.l1, f * self.l2)
 
     @property
     def q_min_array(self) -> np.ndarray:
