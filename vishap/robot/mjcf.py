@@ -2,9 +2,10 @@
 
 One source of truth: lengths, masses, joint limits, damping and the servo rate all come from a
 :class:`PhantomParams`. The arm is a tree — turret (θ1) → upper arm (θ2) → forearm (relative
-elbow joint ``θ3 − θ2``) → passive object — with the parallelogram's masses lumped so that the first
+elbow joint ``θ3 − θ2``) → passive object — with the parallelogram's crank carried by motor 3's
+tendon (its inertia as armature, its gravity torque applied by the plant), so that the first
 moments, hence the gravity torques, equal Cavusoglu's Eq. 7 exactly (see
-:attr:`PhantomParams.lumped_bodies`). The third motor drives a fixed tendon ``θ2 + elbow = θ3``,
+:attr:`PhantomParams.tree_bodies`). The third motor drives a fixed tendon ``θ2 + elbow = θ3``,
 the PHANToM's absolute forearm angle, so actuator ``i`` applies the motor torque ``τ_i`` of joint
 ``θ_i`` (VisHap's convention), and the tendon limit is θ3's joint limit.
 
@@ -68,15 +69,16 @@ def build_mjcf(params: PhantomParams = DEFAULT, *, substeps: int = 1, passive_ob
     if abs(m_obj - params.m_tip) > 1e-12:
         raise ValueError(f"passive object mass {m_obj} kg differs from params.m_tip {params.m_tip} kg")
     p = params
-    bodies = p.lumped_bodies
+    bodies = p.tree_bodies
     m_u, d_u = bodies["upper_arm"]
     m_f, d_f = bodies["forearm"]
+    a3 = p.armature[2] + p.crank_inertia  # the crank turns with θ3: its inertia rides on motor 3
     # inertias about the lumped CoMs (fitted to the data sheet's apparent mass, see params)
     iu = p.upper_arm_inertia
     if_ = p.forearm_inertia
     ts = 1.0 / (p.servo_rate_hz * substeps)
     fr1, fr2, fr3 = p.joint_friction_nm
-    a1, a2, a3 = p.armature
+    a1, a2 = p.armature[0], p.armature[1]
 
     def joint(arm: float, fric: float) -> str:
         return f'damping="{_f(p.joint_damping)}" armature="{_f(arm)}" frictionloss="{_f(fric)}"'

@@ -97,6 +97,8 @@ class MujocoPlant(Device):
             raise ValueError(f"encoder_resolution_rad: expected > 0, got {encoder_resolution_rad!r}")
         self._enc = None  # (θ1, θ2, θ3, θ̇1, θ̇2, θ̇3) of the encoder model
         self._amp = tuple(float(v) for v in self.params.motor_peak_torque_nm)
+        self._crank_g = float(self.params.crank_gravity_nm)  # the crank's gravity, applied each period
+        self._tip_qfrc = (0.0, 0.0, 0.0)
         self.n_amp_saturated = 0
         self._jitter = None
         if jitter_s is not None:
@@ -121,6 +123,7 @@ class MujocoPlant(Device):
         if not np.all(np.isfinite(q)):
             raise ShapeError(f"q: expected finite joint angles, got {q.tolist()}")
         mujoco.mj_resetData(self.model, self.data)
+        self._tip_qfrc = (0.0, 0.0, 0.0)
         self._qpos[:] = (q[0], q[1], q[2] - q[1])
         self._qvel[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
@@ -178,6 +181,14 @@ class MujocoPlant(Device):
         ctrl[2] = tau3
 
     def step(self) -> None:
+        # the crank's gravity torque on θ3 (it is not a body of the tree), with the finger's push
+        b, c = self._qpos[1], self._qpos[2]
+        tg = -self._crank_g * math.sin(b + c)
+        f = self._tip_qfrc
+        qf = self._qfrc_applied
+        qf[0] = f[0]
+        qf[1] = f[1] + tg
+        qf[2] = f[2] + tg
         if self._late:
             self._step_jittered()
         else:
@@ -217,7 +228,7 @@ class MujocoPlant(Device):
         a, b, c = self._qpos.tolist()
         t1, t2, t3 = a, b, b + c
         tau = kinematics.jacobian((t1, t2, t3), self.params).T @ F
-        self._qfrc_applied[:] = (tau[0], tau[1] + tau[2], tau[2])
+        self._tip_qfrc = (float(tau[0]), float(tau[1] + tau[2]), float(tau[2]))
 
     def apparent_mass(self, q=None) -> np.ndarray:
         """Eigenvalues (kg, ascending) of the tip's apparent mass ``(J M⁻¹ Jᵀ)⁻¹`` at joint angles
