@@ -243,3 +243,24 @@ def test_apparent_mass_at_the_centre_meets_the_data_sheet():
     # data sheet: apparent mass at the tip < 75 g; issue 16 asks for 0.04–0.10 kg
     ev = MujocoPlant().apparent_mass(kin.ik(np.array([0.2, 0.0, -0.12])))
     assert np.all(ev >= 0.04) and np.all(ev <= 0.075), ev
+
+
+def test_kalman_velocity_follows_a_slow_motion_and_ignores_encoder_steps():
+    from vishap.robot.controller import kalman_velocity_gains
+
+    T, k1, k2 = kalman_velocity_gains(1e-3, 200.0)
+    res = 1.5e-4
+    t = np.arange(2000) * 1e-3
+    q_true = 0.02 * np.sin(2 * np.pi * 2.0 * t)  # 2 Hz, 0.25 rad/s peak
+    q = np.round(q_true / res) * res  # an encoder
+    bd = np.diff(q, prepend=q[0]) / 1e-3  # the driver's backward difference
+    x, w, est = q[0], 0.0, []
+    for qq in q:
+        a = x + T * w
+        r = qq - a
+        x, w = a + k1 * r, w + k2 * r
+        est.append(w)
+    truth = 0.02 * 2 * np.pi * 2.0 * np.cos(2 * np.pi * 2.0 * t)
+    err_kf = np.sqrt(np.mean((np.array(est)[200:] - truth[200:]) ** 2))
+    err_bd = np.sqrt(np.mean((bd[200:] - truth[200:]) ** 2))
+    assert err_kf < 0.6 * err_bd  # 200 Hz: about half the error (the bandwidth the loop needs)

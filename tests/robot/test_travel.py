@@ -54,8 +54,13 @@ def test_bad_limits_are_refused_with_the_field_named():
 
 def _move(travel, dy: float, *, heat: float = 0.0, ticks: int = 600):
     """Settle the arm (past the 0.5 s force ramp-up), set the heating estimate, jump the target by
-    ``dy`` along y; (peak |F_pd|, time to within 1 mm or None, ticks clipped at the peak)."""
-    servo = build_servo(policy="hold", travel=travel)
+    ``dy`` along y; (peak |F_pd|, time to within 1 mm or None, ticks clipped at the peak).
+
+    The controller's vision-rate boxcar is off: it would smooth the jump itself (over 33 ms), and
+    these tests are about what the travel limiter does on its own."""
+    from vishap.robot.gains import load_gains
+
+    servo = build_servo(policy="hold", travel=travel, gains=load_gains(override={"vision_hz": 0.0})[0])
     ctrl = servo.controller
     for k in range(700):
         servo.tick(k * 1e-3)

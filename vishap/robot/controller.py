@@ -67,15 +67,15 @@ class Gains:
     """Controller gains: ``kp`` (N/m), ``kv`` (N·s/m), Eq. 5 filter constant ``a`` (rad/s), ramp-up (s)."""
 
     kp: float = 800.0
-    kv: float = 32.0
-    a: float = 500.0
+    kv: float = 20.0
+    a: float = 250.0
     ramp_s: float = 0.5
     #: bandwidth (Hz) of the per-joint Kalman velocity estimator on the joint angles; 0 uses the
     #: device's own rates (the driver's backward difference)
-    velocity_hz: float = 0.0
+    velocity_hz: float = 200.0
     #: rate (Hz) at which X_d arrives; > 0 averages the target over one sample interval (a boxcar
     #: whose zeros fall on the sample rate and its harmonics); 0 leaves the target as it comes
-    vision_hz: float = 0.0
+    vision_hz: float = 30.0
 
     def __post_init__(self):
         for name, lo, strict in (("kp", 0.0, False), ("kv", 0.0, False), ("a", 0.0, True), ("ramp_s", 0.0, False),

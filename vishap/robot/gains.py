@@ -29,6 +29,8 @@ class _GainsSection(Schema):
     kv: float = Field(ge=0, description="N·s/m")
     a: float = Field(gt=0, description="rad/s")
     ramp_s: float = Field(ge=0, description="s")
+    velocity_hz: float = Field(default=0.0, ge=0, description="Hz, Kalman velocity estimator bandwidth; 0: the device's rates")
+    vision_hz: float = Field(default=0.0, ge=0, description="Hz, X_d sample rate the target is averaged over; 0: off")
 
 
 class _Region(Schema):
