@@ -90,7 +90,9 @@ class Gains:
 class Controller:
     """Filtered error-space PD + gravity compensation + Λ gain + saturation + ramp-up.
 
-    State (public, inspectable): filtered errors ``ef``/``edf`` (tuples), the last commanded force
+    State (public, inspectable): the tip position ``p`` and velocity ``v`` of the last tick (``v`` from
+    the Kalman estimator when enabled: the estimate a force law's damping should use), filtered
+    errors ``ef``/``edf`` (tuples), the last commanded force
     ``F_cmd``, its parts ``F_gc`` and ``F_pd`` (= ramp·(Λ f + extra)), the heating estimate
     ``heat`` (N²) and counters ``n_target_clamped``, ``n_saturated``, ``n_rejected``, ``n_faults``.
     """
@@ -199,6 +201,7 @@ class Controller:
         self.F_gc = (0.0, 0.0, 0.0)
         self.F_pd = (0.0, 0.0, 0.0)
         self.p = (0.0, 0.0, 0.0)
+        self.v = (0.0, 0.0, 0.0)
         self._kq = None  # Kalman state per joint: (q̂1, q̂2, q̂3, ŵ1, ŵ2, ŵ3)
         self._box = None  # boxcar of the target: ring buffer, running sums, index
         self.target = None
@@ -274,6 +277,7 @@ class Controller:
         vr = ja * w2 + jb * w3  # radial velocity
         vt = r * w1  # tangential
         vx, vy, vz = vr * c1 - vt * s1, vr * s1 + vt * c1, jc * w2 + jd * w3
+        self.v = (vx, vy, vz)  # the tip velocity the controller uses (Kalman estimate when enabled)
 
         # Eq. 4–5: filtered errors
         ex, ey, ez = xd - px, yd - py, zd - pz
