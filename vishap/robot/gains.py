@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import bisect
 import os
+from functools import lru_cache
 from pathlib import Path
 
 from pydantic import Field, model_validator
@@ -19,7 +20,7 @@ from vishap._core.config import Schema, load_config
 from vishap._core.errors import ConfigError
 from vishap.robot.controller import Gains
 
-__all__ = ["GAINS_FILE", "GainsFile", "load_gains", "check_gains"]
+__all__ = ["GAINS_FILE", "GainsFile", "load_gains", "check_gains", "max_renderable_stiffness"]
 
 GAINS_FILE = Path(__file__).with_name("gains.yaml")
 
@@ -50,10 +51,25 @@ class _Region(Schema):
         return self
 
 
+class _Renderable(Schema):
+    measured_by: str
+    damping_n_s_m: list[float] = Field(min_length=1)
+    max_stiffness_n_m: list[float] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _shape(self):
+        if len(self.damping_n_s_m) != len(self.max_stiffness_n_m):
+            raise ValueError("damping_n_s_m and max_stiffness_n_m must have the same length")
+        if sorted(self.damping_n_s_m) != self.damping_n_s_m:
+            raise ValueError("damping_n_s_m must be increasing")
+        return self
+
+
 class GainsFile(Schema):
     gains: _GainsSection
     max_stiffness_n_m: float = Field(gt=0)
     stable_region: _Region
+    renderable_stiffness: _Renderable | None = None
 
 
 def _bracket(values: list[float], x: float) -> list[int] | None:
@@ -111,3 +127,29 @@ def load_gains(path: str | os.PathLike | None = None, *, override: dict | None =
     except ConfigError as exc:
         raise ConfigError(exc.reason, file=path, field=exc.field) from None
     return check_gains(gains, cfg.stable_region, file=path), cfg
+
+
+@lru_cache(maxsize=4)
+def _renderable(path: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    cfg = load_config(path, GainsFile)
+    r = cfg.renderable_stiffness
+    if r is None:
+        return (0.0,), (float(cfg.max_stiffness_n_m),)
+    return tuple(r.damping_n_s_m), tuple(r.max_stiffness_n_m)
+
+
+def max_renderable_stiffness(damping_n_s_m: float, path: str | os.PathLike | None = None) -> float:
+    """The stiffest law (N/m) the device renders stably with normal damping ``damping_n_s_m`` (N·s/m).
+
+    From the file's ``renderable_stiffness`` table (``vishap bench stability``, contact sweep: every
+    mode in its own contact set-up): the entry at the largest measured damping not above the law's
+    (more damping than measured earns nothing), never above the data sheet's stiffness
+    (``PhantomParams.datasheet_stiffness_n_m``). 0 below the smallest measured damping.
+    """
+    from vishap.robot.params import DEFAULT
+
+    bs, ks = _renderable(str(GAINS_FILE if path is None else path))
+    i = bisect.bisect_right(bs, float(damping_n_s_m)) - 1
+    if i < 0:
+        return 0.0
+    return min(float(ks[i]), DEFAULT.datasheet_stiffness_n_m)
