@@ -346,6 +346,3 @@ def run(args) -> dict:
                  "alone (true MuJoCo position: the logs carry the encoder's)",
     }
     return res
-
-
-QUICK_ARGS = ["--seeds", "0", "--seconds", "1.5"]
