@@ -64,8 +64,11 @@ def _grids(quick: bool) -> dict:
 
 
 def _kv_for(kp: float) -> float:
-    """Kv that keeps the damping ratio of the defaults (Kp 800, Kv 32: no overshoot on any axis)."""
-    return 32.0 * math.sqrt(kp / 800.0)
+    """Kv that keeps the damping ratio of the default gains (critically damped on every axis)."""
+    from vishap.robot.controller import Gains
+
+    g = Gains()
+    return g.kv * math.sqrt(kp / g.kp)
 
 
 def _tip_b_T() -> tuple[float, float]:
