@@ -72,7 +72,9 @@ def test_device_travels_on_stiffer_gains_and_renders_contact_on_the_contact_gain
 
     scene = load_scene("wall")
     dev = make_device(scene)
-    assert dev[0].limits.max_stiffness_n_m == 8000.0  # the robot's wall-stiffness limit
+    from vishap.robot.gains import load_gains
+
+    assert dev[0].limits.max_stiffness_n_m == load_gains()[1].max_stiffness_n_m  # the robot's wall-stiffness limit
     assert (dev[1].gains.kp, dev[1].gains.kv) == TRAVEL_GAINS
     with pytest.raises(ConfigError):
         make_device(scene, gains=(6400.0, 8.0))  # outside the measured stable region

@@ -181,10 +181,21 @@ def stable_region(recs: list[dict], substeps: int) -> dict:
         "kp_kv_grid": {"kp": kps, "kv": kvs, "stable": ok.astype(int).tolist()},
         "a_stable": a_ok,
         "a_min": a_min,
+        "a_min_by_kp": {kp: _a_min([r for r in filt if r["kp"] == kp]) for kp in sorted({r["kp"] for r in filt})},
         "a_max": max(a_vals) if a_vals else None,
         "max_wall_stiffness_n_m": max(k_ok) if k_ok else None,
         "stable_delays_ticks_at_kp800": d_ok,
     }
+
+
+def _a_min(runs: list[dict]):
+    """The smallest swept a from which every larger swept a was stable (None if the largest fails)."""
+    a_min = None
+    for r in sorted(runs, key=lambda r: -r["a"]):
+        if r["outcome"] != "stable":
+            break
+        a_min = r["a"]
+    return a_min
 
 
 def _colgate(ax, b: float, T: float, K_range) -> None:

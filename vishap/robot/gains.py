@@ -41,6 +41,9 @@ class _Region(Schema):
     stable: list[list[int]]
     a_min: float = Field(gt=0)
     a_max: float = Field(gt=0)
+    #: the smallest stable a at each Kp of the filter sweep (``{kp: a_min}``); where given, ``a`` is
+    #: checked against the larger of the two bracketing Kp's values instead of the global ``a_min``
+    a_min_by_kp: dict[float, float] | None = None
 
     @model_validator(mode="after")
     def _shape(self):
@@ -102,9 +105,16 @@ def check_gains(gains: Gains, region: _Region, *, file: str | os.PathLike | None
             file=file,
             field="gains",
         )
-    if not region.a_min <= gains.a <= region.a_max:
+    a_min = region.a_min
+    if region.a_min_by_kp:
+        kps = sorted(region.a_min_by_kp)
+        idx = _bracket(kps, gains.kp)
+        if idx is not None:
+            a_min = max(region.a_min_by_kp[kps[i]] for i in idx)
+    if not a_min <= gains.a <= region.a_max:
         raise ConfigError(
-            f"a {gains.a} rad/s is outside the measured stable range {region.a_min}…{region.a_max}", file=file, field="gains.a"
+            f"a {gains.a} rad/s is outside the measured stable range {a_min}…{region.a_max} at kp {gains.kp}",
+            file=file, field="gains.a"
         )
     return gains
 
