@@ -145,13 +145,18 @@ def analyse(log: dict) -> dict:
             makes = int(np.count_nonzero(np.diff(ic[w].astype(np.int8)) == 1)) + 1
             touches.append({"t_s": float(t[a]), "makes_in_100ms": makes, "device_normal_speed_mm_s": float(abs(vn[a]) * 1e3)})
         last_end = t[b - 1]
-    # approaches: from the end of one touch (or the start) to 200 ms after the next first touch
+    # approaches: from the first free Λ after the previous touch's contact ended (the start of the
+    # log for the first) to 200 ms after this touch — the release belongs to the touch before
     lam = log["lambda_state"]
     lam_changes = np.flatnonzero(np.diff(lam) != 0) + 1
-    bounds = [0.0] + [tc["t_s"] for tc in touches]
+    ends = [t[b - 1] for _, b in _runs(ic)]
     per_approach = []
-    for i, tc in enumerate(touches):
-        lo = bounds[i] if i == 0 else touches[i - 1]["t_s"] + 0.2
+    for tc in touches:
+        prev = [e for e in ends if e < tc["t_s"]]
+        lo = -math.inf
+        if prev:
+            free_after = np.flatnonzero((t > prev[-1]) & (lam == 0))
+            lo = t[free_after[0]] if free_after.size else tc["t_s"]
         hi = tc["t_s"] + 0.2
         per_approach.append(int(np.count_nonzero((t[lam_changes] > lo) & (t[lam_changes] <= hi))))
     still = _still(log["X_d"], dt) & out_c & (log["guard"] != 2)
