@@ -264,3 +264,19 @@ def test_kalman_velocity_follows_a_slow_motion_and_ignores_encoder_steps():
     err_kf = np.sqrt(np.mean((np.array(est)[200:] - truth[200:]) ** 2))
     err_bd = np.sqrt(np.mean((bd[200:] - truth[200:]) ** 2))
     assert err_kf < 0.6 * err_bd  # 200 Hz: about half the error (the bandwidth the loop needs)
+
+
+def test_crossing_the_workspace_boundary_at_speed_is_no_force_step():
+    from vishap.robot.kinematics import fk, ik
+
+    ctrl = Controller(gains=Gains(ramp_s=0.0, velocity_hz=0.0, vision_hz=0.0))
+    ctrl.set_lambda((0.0, 0.0, 0.0))  # only the workspace wall acts
+    y_max = ctrl.limits.workspace_max[1]
+    F = []
+    for k, y in enumerate(np.linspace(y_max - 0.0005, y_max + 0.0005, 11)):  # 0.5 m/s outward along y
+        q = ik(np.array([0.2, y, -0.12]))
+        J = kin.jacobian(q)
+        w = np.linalg.solve(J, [0.0, 0.5, 0.0])
+        ctrl.compute(k * 1e-3, *q, *w, *fk(q))
+        F.append(ctrl.F_pd[1])
+    assert max(abs(np.diff(F))) < 0.5 and F[-1] < 0.0

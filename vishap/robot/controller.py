@@ -39,6 +39,7 @@ __all__ = ["Gains", "Controller", "kalman_velocity_gains", "WORKSPACE_STIFFNESS_
 #: stop the arm within a few mm at the demos' speeds, well inside the stable region of a wall
 WORKSPACE_STIFFNESS_N_M = 1000.0
 WORKSPACE_DAMPING_N_S_M = 5.0
+WORKSPACE_DAMPING_RAMP_M = 0.001
 
 
 def kalman_velocity_gains(dt: float, bandwidth_hz: float) -> tuple[float, float, float]:
@@ -317,10 +318,12 @@ class Controller:
         wz = (lo[2] - pz if pz < lo[2] else (hi[2] - pz if pz > hi[2] else 0.0))
         if wx or wy or wz:
             self.n_outside += 1
-            kw, bw = WORKSPACE_STIFFNESS_N_M, WORKSPACE_DAMPING_N_S_M
-            fpx += kw * wx - (bw * vx if vx * wx < 0.0 else 0.0)
-            fpy += kw * wy - (bw * vy if vy * wy < 0.0 else 0.0)
-            fpz += kw * wz - (bw * vz if vz * wz < 0.0 else 0.0)
+            kw, bw, rw = WORKSPACE_STIFFNESS_N_M, WORKSPACE_DAMPING_N_S_M, 1.0 / WORKSPACE_DAMPING_RAMP_M
+            # the damping fades in over the first mm outside, so crossing the boundary at speed is
+            # no force step (the spring part starts at zero by itself)
+            fpx += kw * wx - (bw * min(1.0, abs(wx) * rw) * vx if vx * wx < 0.0 else 0.0)
+            fpy += kw * wy - (bw * min(1.0, abs(wy) * rw) * vy if vy * wy < 0.0 else 0.0)
+            fpz += kw * wz - (bw * min(1.0, abs(wz) * rw) * vz if vz * wz < 0.0 else 0.0)
         # ramp-up of everything but gravity compensation
         el = t - self._t0
         s = 1.0 if el >= self._ramp else (el / self._ramp if el > 0.0 else 0.0)
