@@ -35,11 +35,12 @@ from vishap.robot.params import DEFAULT, PhantomParams
 
 __all__ = ["Gains", "Controller", "kalman_velocity_gains", "WORKSPACE_STIFFNESS_N_M", "WORKSPACE_DAMPING_N_S_M"]
 
-#: the soft wall that keeps the device (not only its target) inside the workspace box: stiff enough to
-#: stop the arm within a few mm at the demos' speeds, well inside the stable region of a wall
-WORKSPACE_STIFFNESS_N_M = 1000.0
+#: the soft wall that keeps the device (not only its target) inside the workspace box: it stops the
+#: arm within ≈ 5 mm at the demos' 0.4 m/s, and at that speed its force grows by < 0.4 N per tick
+#: (the damping fades in over the first WORKSPACE_DAMPING_RAMP_M), so crossing it is no force step
+WORKSPACE_STIFFNESS_N_M = 500.0
 WORKSPACE_DAMPING_N_S_M = 5.0
-WORKSPACE_DAMPING_RAMP_M = 0.001
+WORKSPACE_DAMPING_RAMP_M = 0.005
 
 
 def kalman_velocity_gains(dt: float, bandwidth_hz: float) -> tuple[float, float, float]:
@@ -319,8 +320,7 @@ class Controller:
         if wx or wy or wz:
             self.n_outside += 1
             kw, bw, rw = WORKSPACE_STIFFNESS_N_M, WORKSPACE_DAMPING_N_S_M, 1.0 / WORKSPACE_DAMPING_RAMP_M
-            # the damping fades in over the first mm outside, so crossing the boundary at speed is
-            # no force step (the spring part starts at zero by itself)
+            # the damping fades in over the first WORKSPACE_DAMPING_RAMP_M outside (the spring starts at zero)
             fpx += kw * wx - (bw * min(1.0, abs(wx) * rw) * vx if vx * wx < 0.0 else 0.0)
             fpy += kw * wy - (bw * min(1.0, abs(wy) * rw) * vy if vy * wy < 0.0 else 0.0)
             fpz += kw * wz - (bw * min(1.0, abs(wz) * rw) * vz if vz * wz < 0.0 else 0.0)
