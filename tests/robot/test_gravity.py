@@ -27,12 +27,13 @@ def test_adjusted_m_a_changes_both_coefficients():
     assert (model.c2, model.c3) == (c2, c3)
 
 
-def _bias_torque(m, d, q):
-    """MuJoCo's gravity generalized force at rest, mapped to motor torques: τ = E⁻ᵀ qfrc_bias."""
+def _bias_torque(m, d, q, params):
+    """MuJoCo's gravity generalized force at rest, mapped to motor torques: τ = E⁻ᵀ qfrc_bias, plus
+    the crank's gravity torque on θ3 that the plant applies (the crank is carried by motor 3's tendon)."""
     d.qpos[:] = E_INV @ q
     d.qvel[:] = 0.0
     mujoco.mj_forward(m, d)
-    return E_INV.T @ d.qfrc_bias
+    return E_INV.T @ d.qfrc_bias + np.array([0.0, 0.0, params.crank_gravity_nm * np.sin(q[2])])
 
 
 def test_gravity_matches_mujoco_bias(rng):
@@ -42,7 +43,7 @@ def test_gravity_matches_mujoco_bias(rng):
         d = mujoco.MjData(m)
         for _ in range(30):
             q = np.array([rng.uniform(-0.9, 0.9), rng.uniform(-0.45, 0.85), rng.uniform(-0.9, 0.9)])
-            np.testing.assert_allclose(gravity.gravity_torque(q, params), _bias_torque(m, d, q), rtol=0, atol=1e-14)
+            np.testing.assert_allclose(gravity.gravity_torque(q, params), _bias_torque(m, d, q, params), rtol=0, atol=1e-14)
 
 
 def test_compensation_force_balances_gravity(rng):

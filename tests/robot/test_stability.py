@@ -50,3 +50,31 @@ def test_bench_stability_quick(tmp_path):
     for r in rec["records"]:
         assert r["outcome"] in ("stable", "oscillating", "diverged")
         assert {"kp", "kv", "a", "rate_hz", "delay_ticks", "wall_k", "wall_b", "substeps", "sweep"} <= set(r)
+
+
+def test_each_mode_in_its_own_contact_set_up():
+    # the wall's own set-up (Λ_z = 0: only the law holds the finger) with the measured jitter: its
+    # 800 N/m spring is stable with its 2 N·s/m and not without damping
+    from vishap.robot.stability import contact_law
+
+    own = RunSpec(mode="hard_wall", wall_k=800.0, wall_b=2.0, sensor="encoder", jitter=True)
+    assert run_wall(own)["outcome"] == "stable"
+    assert run_wall(RunSpec(**{**own.as_dict(), "wall_b": 0.0}))["outcome"] != "stable"
+    key = contact_law("key_click", 2500.0, 2.0)
+    assert key.lambda_contact == (1.0, 1.0, 0.0) and key.k3 == 2500.0
+
+
+def test_renderable_stiffness_takes_every_mode_and_the_data_sheet():
+    from vishap.bench.stability import renderable_stiffness
+
+    def rec(mode, K, B, ok):
+        return {"sweep": "contact", "mode": mode, "wall_k": K, "wall_b": B, "outcome": "stable" if ok else "oscillating",
+                "colgate_passive": False}
+
+    recs = [rec(m, K, B, K <= lim) for m, lim in (("hard_wall", 2500), ("key_click", 1600))
+            for K in (800, 1600, 2500, 5000) for B in (1, 2)]
+    recs += [rec(m, K, 4, True) for m in ("hard_wall", "key_click") for K in (800, 1600, 2500, 5000)]
+    r = renderable_stiffness(recs)
+    assert r["max_stiffness_n_m"] == [1600.0, 1600.0, 3500.0]  # the weakest mode; capped at 3.5 N/mm
+    assert r["per_mode"]["hard_wall"]["max_stiffness_n_m"] == 2500.0
+    assert r["passive_but_unstable"] == 0 and r["stable_but_not_passive"] == sum(x["outcome"] == "stable" for x in recs)

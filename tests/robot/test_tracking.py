@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from vishap.robot.controller import Gains
+from vishap.robot.params import DEFAULT
 from vishap.robot.tracking import moving_target, step_metrics, step_response
 
 
@@ -23,7 +24,9 @@ def test_step_metrics_on_a_known_second_order_response():
 def test_default_gains_do_not_overshoot():
     for d in ([1, 0, 0], [0, 1, 0], [0, 0, 1]):
         r = step_response(Gains(), d, 0.02, duration_s=0.6)
-        assert r["overshoot_pct"] < 1.0 and r["steady_state_error_m"] < 1e-5 and r["settling_time_s"] < 0.3
+        # Coulomb friction leaves a dead band of F_c / Kp (0.04 N / 800 N/m = 50 µm) around the target
+        dead_band = DEFAULT.coulomb_friction_n / Gains().kp
+        assert r["overshoot_pct"] < 1.0 and r["steady_state_error_m"] < dead_band and r["settling_time_s"] < 0.3
 
 
 def test_extrapolation_beats_hold_on_a_moving_finger():

@@ -54,8 +54,13 @@ def test_bad_limits_are_refused_with_the_field_named():
 
 def _move(travel, dy: float, *, heat: float = 0.0, ticks: int = 600):
     """Settle the arm (past the 0.5 s force ramp-up), set the heating estimate, jump the target by
-    ``dy`` along y; (peak |F_pd|, time to within 1 mm or None, ticks clipped at the peak)."""
-    servo = build_servo(policy="hold", travel=travel)
+    ``dy`` along y; (peak |F_pd|, time to within 1 mm or None, ticks clipped at the peak).
+
+    The controller's vision-rate boxcar is off: it would smooth the jump itself (over 33 ms), and
+    these tests are about what the travel limiter does on its own."""
+    from vishap.robot.gains import load_gains
+
+    servo = build_servo(policy="hold", travel=travel, gains=load_gains(override={"vision_hz": 0.0})[0])
     ctrl = servo.controller
     for k in range(700):
         servo.tick(k * 1e-3)
@@ -104,3 +109,30 @@ def test_a_nan_target_does_not_poison_the_limiter():
         servo.tick(k * 1e-3, goal)
     assert ctrl.n_rejected == 1
     assert np.linalg.norm(np.array(ctrl.p) - goal) < 1e-4
+
+
+def test_the_output_is_never_faster_than_max_speed_even_with_a_fast_target():
+    lim = TravelLimiter(0.3, 40.0)
+    xs, vs, dt = _run(lim, (0.05, 0.0, 0.0), v_target=(0.5, 0.2, 0.0), seconds=0.4)
+    assert np.linalg.norm(vs, axis=1).max() <= 0.3 + 1e-12
+    # and the position really moves at that speed: the output's steps match its velocity
+    assert np.linalg.norm(np.diff(xs, axis=0), axis=1).max() / dt <= 0.3 + 1e-9
+
+
+def test_near_the_finger_the_speed_is_capped_and_touch_down_is_slow():
+    lim = TravelLimiter(0.6, 40.0)
+    lim.reset(0.0, 0.0, 0.0)
+    finger = np.array([0.05, 0.0, 0.0])
+    speeds, dists = [], []
+    for k in range(400):
+        d = float(np.linalg.norm(finger - lim._x))
+        out = lim.step(k * 1e-3, *finger, 0.0, 0.0, 0.0, finger_m=d)
+        speeds.append(np.linalg.norm(out[3:]))
+        dists.append(d)
+    speeds, dists = np.array(speeds), np.array(dists)
+    near = dists < 0.020
+    assert near.any() and speeds[near].max() <= 0.25 + 1e-9
+    assert speeds.max() > 0.4  # far from the finger it still travels fast
+    at_touch = dists < 0.001
+    assert at_touch.any() and speeds[at_touch].max() <= 0.010 + 1e-12
+    assert lim.cap_at(None) == 0.6 and lim.cap_at(0.0) == pytest.approx(0.010)

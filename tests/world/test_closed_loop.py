@@ -74,7 +74,7 @@ def test_closed_loop_runs_the_systems_servo_step():
     scene = load_scene("wall")
     step = make_device(scene)
     gains, _ = load_gains()
-    assert step.device.limits.max_stiffness_n_m == 8000.0  # the robot's wall-stiffness limit
+    assert step.device.limits.max_stiffness_n_m == load_gains()[1].max_stiffness_n_m  # the robot's wall-stiffness limit
     assert (step.controller.gains.kp, step.controller.gains.kv) == (gains.kp, gains.kv)
     tr = _traj(scene, "wall", [0.01, 0.0, 0.04], 0.2)
     r = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s), vision=CLEAN, step=step,

@@ -80,3 +80,40 @@ def test_make_law_builds_only_what_the_object_needs():
     assert type(key_b) is ButtonClick and key_b.k1 == 500.0 and key_b.k2 == 60.0
     fab = make_law(load_scene("fabric").objects[0])
     assert type(fab) is FabricFriction and fab.mu_s == 0.45 and fab.mu_k == 0.35
+
+
+def test_a_law_stiffer_than_the_device_renders_is_refused_naming_the_field(tmp_path):
+    from vishap._core.errors import ConfigError
+    from vishap.robot.gains import max_renderable_stiffness
+    from vishap.robot.params import DEFAULT
+    from vishap.world.modes import default_modes, load_modes
+
+    # the shipped modes all pass, and nothing is allowed above the data sheet's 3.5 N/mm
+    default_modes()
+    assert max_renderable_stiffness(100.0) <= DEFAULT.datasheet_stiffness_n_m
+    k = max_renderable_stiffness(2.0)
+    p = tmp_path / "modes.yaml"
+    p.write_text("key: {kinds: [button], allows: [press], target: centre, law: {kind: button_click, k_resist_n_m: 300,"
+                 f" k_click_n_m: 60, k_bottom_n_m: {k * 1.5}, damping_n_s_m: 2.0}}}}\n")
+    with pytest.raises(ConfigError) as exc:
+        load_modes(p)
+    assert exc.value.field == "key.law.k_bottom_n_m" and str(p) in str(exc.value)
+    # less damping renders less: a wall at the 2 N·s/m limit is refused without damping
+    p.write_text(f"w: {{kinds: [wall], allows: [slide], target: follow, law: {{kind: wall_spring, stiffness_n_m: {k}}}}}\n")
+    if max_renderable_stiffness(0.0) < k:
+        with pytest.raises(ConfigError, match="w.law.stiffness_n_m"):
+            load_modes(p)
+
+
+def test_a_scene_key_stiffer_than_renderable_is_refused_when_its_law_is_built():
+    from dataclasses import replace
+
+    from vishap._core.errors import ConfigError
+
+    key = load_scene("button").object("key")
+    make_law(key)  # the shipped key renders
+    stiff = key.spec.stiffness.model_copy(update={"k_bottom_n_m": 1e5})
+    obj = replace(key, spec=key.spec.model_copy(update={"stiffness": stiff}))
+    with pytest.raises(ConfigError) as exc:
+        make_law(obj)
+    assert exc.value.field == "objects.key.k_bottom_n_m"

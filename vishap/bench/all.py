@@ -40,6 +40,7 @@ QUICK_FALLBACK = {
     "robot": ["--ticks", "3000", "--rounds", "3"],
     "tactile": ["--seconds", "1.5", "--repeats", "1"],
     "world": ["--approaches", "20"],
+    "servo_quality": ["--seeds", "0", "--seconds", "1.5"],
 }
 
 

@@ -7,7 +7,13 @@ Sweeps (each run: :mod:`vishap.robot.stability`, MuJoCo with ``--substeps`` phys
 * ``rate`` — X_d update rate 20 Hz → 1 kHz × gap policy (hold / interpolate / extrapolate);
 * ``delay`` — added transport delay (servo periods) × Kp;
 * ``wall`` — virtual-wall stiffness K × damping B, with 1 and ``--substeps`` physics steps per
-  period and both sensors: one physics step per period can hide the instability.
+  period and both sensors: one physics step per period can hide the instability;
+* ``contact`` — every interaction mode in its own contact set-up (its law with the stiffest part at
+  K and damping B, its contact gain Λ, the encoder, ``--substeps``, the demos' measured servo jitter
+  and the plant's Coulomb friction), each point beside Colgate's bound ``b > K·T/2 + |B|``. From it:
+  the largest stiffness renderable at each damping (every mode stable at every K up to it), never
+  above the data sheet's 3.5 N/mm — the table ``gains.yaml`` holds and the force laws are checked
+  against.
 
 The chart draws the Colgate–Schenkel passivity bound ``b > K·T/2 + |B|`` for the arm's own tip
 damping ``b`` and, dashed, for larger ``b`` a real device might have. Returns (and the command
@@ -33,6 +39,8 @@ RATES = [20, 30, 60, 125, 250, 500, 1000]
 DELAYS = [0, 1, 2, 3, 5, 8, 12, 20]
 WALL_K = [250, 500, 1000, 2000, 4000, 8000, 16000, 32000, 64000]
 WALL_B = [0, 2, 5, 10, 20, 40]
+CONTACT_K = [250, 500, 800, 1600, 2500, 3500, 5000]
+CONTACT_B = [0, 1, 2, 4]
 SWEEP_KP = [200, 800, 3200]  # Kp of the filter and delay sweeps (Kv ∝ √Kp)
 COLORS = {"stable": "tab:green", "oscillating": "tab:orange", "diverged": "tab:red"}
 
@@ -44,20 +52,69 @@ def add_arguments(parser) -> None:
 
 def _grids(quick: bool) -> dict:
     if not quick:
-        return dict(kp=KP, kv=KV, a=A, rates=RATES, delays=DELAYS, wall_k=WALL_K, wall_b=WALL_B, sensors=["exact", "encoder"])
+        from vishap.world.modes import default_modes
+
+        return dict(kp=KP, kv=KV, a=A, rates=RATES, delays=DELAYS, wall_k=WALL_K, wall_b=WALL_B, sensors=["exact", "encoder"],
+                    contact_k=CONTACT_K, contact_b=CONTACT_B, modes=sorted(default_modes().modes))
     return dict(
         kp=[800, 6400], kv=[0, 32], a=[500], rates=[20], delays=[12],
         wall_k=[32000], wall_b=[0], sensors=["exact"],
+        contact_k=[800, 5000], contact_b=[2], modes=["hard_wall"],
     )
 
 
 def _kv_for(kp: float) -> float:
-    """Kv that keeps the damping ratio of the defaults (Kp 800, Kv 32: no overshoot on any axis)."""
-    return 32.0 * math.sqrt(kp / 800.0)
+    """Kv that keeps the damping ratio of the default gains (critically damped on every axis)."""
+    from vishap.robot.controller import Gains
+
+    g = Gains()
+    return g.kv * math.sqrt(kp / g.kp)
+
+
+def _tip_b_T() -> tuple[float, float]:
+    from vishap.robot.params import DEFAULT
+    from vishap.robot.stability import tip_damping
+
+    return tip_damping(), DEFAULT.dt
+
+
+def renderable_stiffness(recs: list[dict]) -> dict:
+    """From the ``contact`` sweep: per damping B, the largest K at which every mode was stable at every
+    swept K up to it, capped at the data sheet's stiffness; and per mode at its own damping."""
+    from vishap.robot.params import DEFAULT
+    from vishap.world.modes import default_modes
+
+    cap = DEFAULT.datasheet_stiffness_n_m
+    con = [r for r in recs if r["sweep"] == "contact"]
+    ks = sorted({r["wall_k"] for r in con})
+    bs = sorted({r["wall_b"] for r in con})
+
+    def largest(rows) -> float:
+        best = 0.0
+        for K in ks:
+            at = [r for r in rows if r["wall_k"] == K]
+            if not at or any(r["outcome"] != "stable" for r in at):
+                break
+            best = float(K)
+        return min(best, cap)
+
+    table = [largest([r for r in con if r["wall_b"] == B]) for B in bs]
+    db = default_modes()
+    per_mode = {}
+    for name in sorted({r["mode"] for r in con}):
+        law = db.modes[name].law
+        own_b = max([B for B in bs if B <= law.damping_n_s_m] or [bs[0]])
+        per_mode[name] = {"damping_n_s_m": law.damping_n_s_m, "table_b": own_b,
+                          "max_stiffness_n_m": largest([r for r in con if r["mode"] == name and r["wall_b"] == own_b])}
+    agree = sum(1 for r in con if (r["outcome"] == "stable") == r["colgate_passive"])
+    return {"damping_n_s_m": bs, "max_stiffness_n_m": table, "datasheet_stiffness_n_m": cap, "per_mode": per_mode,
+            "colgate_agrees": agree, "colgate_points": len(con),
+            "stable_but_not_passive": sum(1 for r in con if r["outcome"] == "stable" and not r["colgate_passive"]),
+            "passive_but_unstable": sum(1 for r in con if r["outcome"] != "stable" and r["colgate_passive"])}
 
 
 def run_sweeps(substeps: int, quick: bool = False) -> list[dict]:
-    from vishap.robot.stability import RunSpec, run_free_space, run_wall
+    from vishap.robot.stability import RunSpec, passivity_margin, run_free_space, run_wall
 
     g = _grids(quick)
     recs: list[dict] = []
@@ -80,6 +137,14 @@ def run_sweeps(substeps: int, quick: bool = False) -> list[dict]:
     for kp in ([800] if quick else SWEEP_KP):
         for d in g["delays"]:
             add("delay", run_free_space, kp=kp, kv=_kv_for(kp), delay_ticks=d)
+    b_tip, T = _tip_b_T()
+    for mode in g["modes"]:
+        for K in g["contact_k"]:
+            for B in g["contact_b"]:
+                r = run_wall(RunSpec(substeps=substeps, sensor="encoder", wall_k=K, wall_b=B, mode=mode, jitter=True))
+                r["sweep"] = "contact"
+                r["colgate_passive"] = passivity_margin(K, B, b_tip, T) > 0
+                recs.append(r)
     for sub in sorted({1, substeps}):
         for sensor in g["sensors"]:
             for K in g["wall_k"]:
@@ -116,10 +181,21 @@ def stable_region(recs: list[dict], substeps: int) -> dict:
         "kp_kv_grid": {"kp": kps, "kv": kvs, "stable": ok.astype(int).tolist()},
         "a_stable": a_ok,
         "a_min": a_min,
+        "a_min_by_kp": {kp: _a_min([r for r in filt if r["kp"] == kp]) for kp in sorted({r["kp"] for r in filt})},
         "a_max": max(a_vals) if a_vals else None,
         "max_wall_stiffness_n_m": max(k_ok) if k_ok else None,
         "stable_delays_ticks_at_kp800": d_ok,
     }
+
+
+def _a_min(runs: list[dict]):
+    """The smallest swept a from which every larger swept a was stable (None if the largest fails)."""
+    a_min = None
+    for r in sorted(runs, key=lambda r: -r["a"]):
+        if r["outcome"] != "stable":
+            break
+        a_min = r["a"]
+    return a_min
 
 
 def _colgate(ax, b: float, T: float, K_range) -> None:
@@ -145,7 +221,7 @@ def _scatter(ax, recs, x, y, title, xlog=True, ylog=False):
 
 
 def chart(recs: list[dict], out: Path, substeps: int, b_tip: float, T: float) -> Path:
-    fig, axes = new_figure(2, 4, figsize=(18, 8.5))
+    fig, axes = new_figure(3, 4, figsize=(18, 12.5))
     axes = axes.ravel()
     sensors = sorted({r["sensor"] for r in recs if r["sweep"] == "kp_kv"})
     for i, sensor in enumerate(sensors[:2]):
@@ -186,6 +262,20 @@ def chart(recs: list[dict], out: Path, substeps: int, b_tip: float, T: float) ->
     ax.set_xlabel("added delay (ms; 0 drawn at 0.5)")
     ax.set_ylabel("kp")
     ax.set_title("added delay × Kp (Kv ∝ √Kp)", fontsize=9)
+    con = [r for r in recs if r["sweep"] == "contact"]
+    for j, mode in enumerate(sorted({r["mode"] for r in con})[:4]):
+        ax = axes[8 + j]
+        sub = [r for r in con if r["mode"] == mode]
+        _scatter(ax, sub, "wall_k", "wall_b", f"{mode}: its Λ and law, encoder, jitter, friction", ylog=True)
+        for r in sub:  # Colgate's verdict point by point: a ring where the bound calls the point passive
+            if r["colgate_passive"]:
+                ax.scatter(r["wall_k"], r["wall_b"], s=80, facecolors="none", edgecolors="k", linewidths=0.8)
+        _colgate(ax, b_tip, T, (min(CONTACT_K), max(CONTACT_K)))
+        ax.axvline(3500.0, color="gray", ls=":", lw=1)
+        ax.set_xlabel("stiffest part K (N/m); dotted: data sheet 3.5 N/mm")
+        ax.set_ylabel("law damping B (N·s/m)")
+    for ax in axes[8 + len({r["mode"] for r in con}):]:
+        ax.set_visible(False)
     from vishap.robot.controller import Gains
 
     g = Gains()
@@ -240,6 +330,7 @@ def run(args) -> dict:
         "colgate_max_passive_stiffness_n_m": 2 * b_tip / DEFAULT.dt,
         "walls_hidden_by_one_substep": hidden,
         "stable_region": region,
+        "renderable_stiffness": renderable_stiffness(recs),
         "chart": str(png),
         "machine": machine_info(),
         "records": recs,

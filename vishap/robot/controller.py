@@ -11,12 +11,14 @@ Per servo tick, in the robot frame:
   transform with ``R`` mapping the device frame to the object frame);
 * the world's force law (``extra``) is added to ``Λ f``; that part ramps up linearly over ``ramp_s``
   after start (gravity compensation is on from the first tick);
-* ``|F|`` is saturated at the peak force, or at the continuous force while a first-order estimate of
+* ``|F|`` is saturated at the peak force (and τ scaled down as a whole where a motor would exceed its
+  peak torque), or at the continuous force while a first-order estimate of
   ``|F|²`` (motor heating, time constant ``thermal_tau_s``) exceeds the continuous force squared;
 * ``τ = Jᵀ F`` (Eq. 6).
 
 Targets outside the reachable box are clamped to its nearest point and counted; a non-finite
-target keeps the last good one, a non-finite external force is ignored, a non-finite joint reading
+target keeps the last good one; a device outside the box is pushed back by a spring–damper on its
+measured position (``n_outside`` counts the ticks); a non-finite external force is ignored, a non-finite joint reading
 commands zero torque — each counted. Nothing non-finite or beyond the limits is ever returned.
 The hot path (:meth:`Controller.compute`) works on floats with :mod:`math` only.
 """
@@ -31,7 +33,35 @@ from vishap._core.errors import ConfigError
 from vishap.robot.device import DeviceLimits
 from vishap.robot.params import DEFAULT, PhantomParams
 
-__all__ = ["Gains", "Controller"]
+__all__ = ["Gains", "Controller", "kalman_velocity_gains", "WORKSPACE_STIFFNESS_N_M", "WORKSPACE_DAMPING_N_S_M"]
+
+#: the soft wall that keeps the device (not only its target) inside the workspace box: it stops the
+#: arm within ≈ 5 mm at the demos' 0.4 m/s, and at that speed its force grows by < 0.4 N per tick
+#: (the damping fades in over the first WORKSPACE_DAMPING_RAMP_M), so crossing it is no force step
+WORKSPACE_STIFFNESS_N_M = 500.0
+WORKSPACE_DAMPING_N_S_M = 5.0
+WORKSPACE_DAMPING_RAMP_M = 0.005
+
+
+def kalman_velocity_gains(dt: float, bandwidth_hz: float) -> tuple[float, float, float]:
+    """``(dt, k_q, k_w)``: steady-state Kalman gains of a constant-velocity model of one joint.
+
+    Angle and rate are estimated from the angle alone (an encoder); the process noise is white
+    acceleration. In the continuous limit the steady-state filter is a second-order Butterworth
+    observer with ``ω_n = (q_c / r_c)^¼``, so the noise ratio is set from the wanted bandwidth,
+    ``q_c = ω_n⁴·r_c`` (r_c = σ²·dt for a sample variance σ², which then cancels from the gains).
+    """
+    from scipy.linalg import solve_discrete_are
+
+    wn = 2.0 * math.pi * float(bandwidth_hz)
+    r = 1.0  # the sample variance: only the ratio to the process noise matters
+    qc = wn**4 * r * dt
+    F = np.array([[1.0, dt], [0.0, 1.0]])
+    H = np.array([[1.0, 0.0]])
+    Q = qc * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+    P = solve_discrete_are(F.T, H.T, Q, np.array([[r]]))
+    K = P @ H.T / (H @ P @ H.T + r)
+    return float(dt), float(K[0, 0]), float(K[1, 0])
 
 
 @dataclass(frozen=True)
@@ -39,12 +69,19 @@ class Gains:
     """Controller gains: ``kp`` (N/m), ``kv`` (N·s/m), Eq. 5 filter constant ``a`` (rad/s), ramp-up (s)."""
 
     kp: float = 800.0
-    kv: float = 32.0
-    a: float = 500.0
+    kv: float = 20.0
+    a: float = 250.0
     ramp_s: float = 0.5
+    #: bandwidth (Hz) of the per-joint Kalman velocity estimator on the joint angles; 0 uses the
+    #: device's own rates (the driver's backward difference)
+    velocity_hz: float = 200.0
+    #: rate (Hz) at which X_d arrives; > 0 averages the target over one sample interval (a boxcar
+    #: whose zeros fall on the sample rate and its harmonics); 0 leaves the target as it comes
+    vision_hz: float = 30.0
 
     def __post_init__(self):
-        for name, lo, strict in (("kp", 0.0, False), ("kv", 0.0, False), ("a", 0.0, True), ("ramp_s", 0.0, False)):
+        for name, lo, strict in (("kp", 0.0, False), ("kv", 0.0, False), ("a", 0.0, True), ("ramp_s", 0.0, False),
+                                 ("velocity_hz", 0.0, False), ("vision_hz", 0.0, False)):
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
                 raise ConfigError(f"expected a finite number, got {v!r}", field=f"gains.{name}")
@@ -55,7 +92,9 @@ class Gains:
 class Controller:
     """Filtered error-space PD + gravity compensation + Λ gain + saturation + ramp-up.
 
-    State (public, inspectable): filtered errors ``ef``/``edf`` (tuples), the last commanded force
+    State (public, inspectable): the tip position ``p`` and velocity ``v`` of the last tick (``v`` from
+    the Kalman estimator when enabled: the estimate a force law's damping should use), filtered
+    errors ``ef``/``edf`` (tuples), the last commanded force
     ``F_cmd``, its parts ``F_gc`` and ``F_pd`` (= ramp·(Λ f + extra)), the heating estimate
     ``heat`` (N²) and counters ``n_target_clamped``, ``n_saturated``, ``n_rejected``, ``n_faults``.
     """
@@ -72,9 +111,13 @@ class Controller:
         self._peak = float(self.limits.peak_force_n)
         self._cont = float(self.limits.continuous_force_n)
         self._heat_k = self.dt / params.thermal_tau_s
+        self._motor = tuple(float(v) for v in params.motor_peak_torque_nm)
         self.set_gains(gains)
         self.set_gravity(params)
         self.set_lambda(None)
+        #: multiplies the PD and law force (not gravity compensation): the object-gain scheduler's
+        #: force ramp (vishap.robot.object_gain); 1 leaves the controller as it was
+        self.force_scale = 1.0
         self.reset()
 
     # -- configuration ---------------------------------------------------------------------------
@@ -84,6 +127,8 @@ class Controller:
         aT = gains.a * self.dt
         self._k = aT / (1.0 + aT)  # y += k (x − y)  ⇔  y_t = (aT x + y_{t−1}) / (1 + aT)
         self._ramp = float(gains.ramp_s)
+        self._kf = kalman_velocity_gains(self.dt, gains.velocity_hz) if gains.velocity_hz > 0 else None
+        self._box_n = max(1, int(round(1.0 / (gains.vision_hz * self.dt)))) if gains.vision_hz > 0 else 0
 
     def set_gravity(self, params: PhantomParams) -> None:
         """Use Eq. 7 with ``params`` (e.g. ``m_a`` adjusted or ``m_tip`` set for an attached object)."""
@@ -108,6 +153,7 @@ class Controller:
                 R = np.asarray(R_robot_obj, dtype=np.float64).reshape(3, 3)
                 L = R @ L @ R.T
         self.lambda_clipped = False
+        self._L_src = None
         ms = self.limits.max_stiffness_n_m
         if ms is not None and self._kp > 0:
             lam_max = float(np.max(np.abs(np.linalg.eigvals(L))))
@@ -118,6 +164,26 @@ class Controller:
         self._L = tuple(float(v) for v in L.ravel())
         self._L_identity = bool(np.array_equal(L, np.eye(3)))
         return L
+
+    def set_lambda_robot(self, L) -> None:
+        """Set Λ_gain already in the robot frame (3×3 nested sequence), cheaply, once per tick.
+
+        For the object-gain scheduler's output: unchanged Λ costs one comparison; a Λ whose row sums
+        keep ``λ·Kp`` under the stiffness cap skips the eigenvalue check of :meth:`set_lambda`."""
+        if L is self._L_src:
+            return
+        flat = (L[0][0], L[0][1], L[0][2], L[1][0], L[1][1], L[1][2], L[2][0], L[2][1], L[2][2])
+        ms = self.limits.max_stiffness_n_m
+        bound = max(abs(flat[0]) + abs(flat[1]) + abs(flat[2]), abs(flat[3]) + abs(flat[4]) + abs(flat[5]),
+                    abs(flat[6]) + abs(flat[7]) + abs(flat[8]))
+        if not all(math.isfinite(v) for v in flat) or (ms is not None and bound * self._kp > ms):
+            self.set_lambda(np.array(flat).reshape(3, 3))  # checks and clips (or raises)
+        else:
+            self.lambda_clipped = False
+            self._L = tuple(float(v) for v in flat)
+            self._L_identity = self._L == (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+            self.lambda_robot = np.array(self._L).reshape(3, 3)
+        self._L_src = L
 
     @property
     def thermal_headroom(self) -> float:
@@ -137,6 +203,9 @@ class Controller:
         self.F_gc = (0.0, 0.0, 0.0)
         self.F_pd = (0.0, 0.0, 0.0)
         self.p = (0.0, 0.0, 0.0)
+        self.v = (0.0, 0.0, 0.0)
+        self._kq = None  # Kalman state per joint: (q̂1, q̂2, q̂3, ŵ1, ŵ2, ŵ3)
+        self._box = None  # boxcar of the target: ring buffer, running sums, index
         self.target = None
         self.target_clamped = False
         self.saturated = False
@@ -144,6 +213,7 @@ class Controller:
         self.n_saturated = 0
         self.n_rejected = 0
         self.n_faults = 0
+        self.n_outside = 0
 
     # -- the 1 kHz hot path ------------------------------------------------------------------------
     def compute(self, t, q1, q2, q3, w1, w2, w3, xd, yd, zd, vxd=0.0, vyd=0.0, vzd=0.0, fx=0.0, fy=0.0, fz=0.0):
@@ -182,6 +252,20 @@ class Controller:
             self.n_target_clamped += 1
         self.target_clamped = clamped
         self.target = (xd, yd, zd)
+        if self._box_n > 1:
+            xd, yd, zd, vxd, vyd, vzd = self._boxcar(xd, yd, zd, vxd, vyd, vzd)
+        kf = self._kf
+        if kf is not None:  # Kalman velocity from the joint angles (the device's rates are ignored)
+            st = self._kq
+            if st is None:
+                st = (q1, q2, q3, 0.0, 0.0, 0.0)
+            else:
+                T, k1, k2 = kf
+                a1, a2, a3 = st[0] + T * st[3], st[1] + T * st[4], st[2] + T * st[5]
+                r1, r2, r3 = q1 - a1, q2 - a2, q3 - a3
+                st = (a1 + k1 * r1, a2 + k1 * r2, a3 + k1 * r3, st[3] + k2 * r1, st[4] + k2 * r2, st[5] + k2 * r3)
+            self._kq = st
+            w1, w2, w3 = st[3], st[4], st[5]
 
         # kinematics (Eq. 6): p, J, v = J q̇
         l1, l2 = self._l1, self._l2
@@ -195,6 +279,7 @@ class Controller:
         vr = ja * w2 + jb * w3  # radial velocity
         vt = r * w1  # tangential
         vx, vy, vz = vr * c1 - vt * s1, vr * s1 + vt * c1, jc * w2 + jd * w3
+        self.v = (vx, vy, vz)  # the tip velocity the controller uses (Kalman estimate when enabled)
 
         # Eq. 4–5: filtered errors
         ex, ey, ez = xd - px, yd - py, zd - pz
@@ -227,9 +312,22 @@ class Controller:
                 L[3] * fpx + L[4] * fpy + L[5] * fpz,
                 L[6] * fpx + L[7] * fpy + L[8] * fpz,
             )
+        # the device itself kept inside the workspace box: a spring–damper on the part of p outside it
+        # (acts on the measured position, so a finger or a law pushing the device out meets it too)
+        wx = (lo[0] - px if px < lo[0] else (hi[0] - px if px > hi[0] else 0.0))
+        wy = (lo[1] - py if py < lo[1] else (hi[1] - py if py > hi[1] else 0.0))
+        wz = (lo[2] - pz if pz < lo[2] else (hi[2] - pz if pz > hi[2] else 0.0))
+        if wx or wy or wz:
+            self.n_outside += 1
+            kw, bw, rw = WORKSPACE_STIFFNESS_N_M, WORKSPACE_DAMPING_N_S_M, 1.0 / WORKSPACE_DAMPING_RAMP_M
+            # the damping fades in over the first WORKSPACE_DAMPING_RAMP_M outside (the spring starts at zero)
+            fpx += kw * wx - (bw * min(1.0, abs(wx) * rw) * vx if vx * wx < 0.0 else 0.0)
+            fpy += kw * wy - (bw * min(1.0, abs(wy) * rw) * vy if vy * wy < 0.0 else 0.0)
+            fpz += kw * wz - (bw * min(1.0, abs(wz) * rw) * vz if vz * wz < 0.0 else 0.0)
         # ramp-up of everything but gravity compensation
         el = t - self._t0
         s = 1.0 if el >= self._ramp else (el / self._ramp if el > 0.0 else 0.0)
+        s *= self.force_scale
         Fx, Fy, Fz = s * (fpx + fx), s * (fpy + fy), s * (fpz + fz)
         self.F_pd = (Fx, Fy, Fz)
         # Eq. 6–7: F_GC = J⁻ᵀ τ_g (τ_g1 = 0, so no tangential part)
@@ -260,12 +358,39 @@ class Controller:
         Fr = Fx * c1 + Fy * s1
         Ft = -Fx * s1 + Fy * c1
         tau1, tau2, tau3 = r * Ft, ja * Fr + jc * Fz, jb * Fr + jd * Fz
+        # each motor's peak torque (its amplifier's current limit): scale τ as a whole, so the force
+        # keeps its direction rather than being bent by one clipped motor
+        m1, m2, m3 = self._motor
+        sc = min(1.0, m1 / abs(tau1) if abs(tau1) > m1 else 1.0, m2 / abs(tau2) if abs(tau2) > m2 else 1.0,
+                 m3 / abs(tau3) if abs(tau3) > m3 else 1.0)
+        if sc < 1.0:
+            tau1, tau2, tau3 = tau1 * sc, tau2 * sc, tau3 * sc
+            Fx, Fy, Fz = Fx * sc, Fy * sc, Fz * sc
+            if not self.saturated:
+                self.saturated = True
+                self.n_saturated += 1
         if not isf(tau1 + tau2 + tau3):  # only reachable through overflow
             self.n_faults += 1
             self.F_cmd = (0.0, 0.0, 0.0)
             return 0.0, 0.0, 0.0
         self.F_cmd = (Fx, Fy, Fz)
         return tau1, tau2, tau3
+
+    def _boxcar(self, xd, yd, zd, vxd, vyd, vzd):
+        """Mean of the target over the last sample interval (O(1): a ring buffer and running sums)."""
+        v = (xd, yd, zd, vxd, vyd, vzd)
+        b = self._box
+        n = self._box_n
+        if b is None:
+            self._box = b = [[v] * n, [x * n for x in v], 0]
+            return v
+        ring, sums, i = b
+        old = ring[i]
+        ring[i] = v
+        b[2] = (i + 1) % n
+        sums = [sums[j] + v[j] - old[j] for j in range(6)]
+        b[1] = sums
+        return tuple(x / n for x in sums)
 
     # -- convenience -------------------------------------------------------------------------------
     def command(self, t: float, q, qd, X_d, Xd_dot=(0.0, 0.0, 0.0), extra_force_robot=None) -> np.ndarray:

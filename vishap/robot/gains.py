@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import bisect
 import os
+from functools import lru_cache
 from pathlib import Path
 
 from pydantic import Field, model_validator
@@ -19,7 +20,7 @@ from vishap._core.config import Schema, load_config
 from vishap._core.errors import ConfigError
 from vishap.robot.controller import Gains
 
-__all__ = ["GAINS_FILE", "GainsFile", "load_gains", "check_gains"]
+__all__ = ["GAINS_FILE", "GainsFile", "load_gains", "check_gains", "max_renderable_stiffness"]
 
 GAINS_FILE = Path(__file__).with_name("gains.yaml")
 
@@ -29,6 +30,8 @@ class _GainsSection(Schema):
     kv: float = Field(ge=0, description="N·s/m")
     a: float = Field(gt=0, description="rad/s")
     ramp_s: float = Field(ge=0, description="s")
+    velocity_hz: float = Field(default=0.0, ge=0, description="Hz, Kalman velocity estimator bandwidth; 0: the device's rates")
+    vision_hz: float = Field(default=0.0, ge=0, description="Hz, X_d sample rate the target is averaged over; 0: off")
 
 
 class _Region(Schema):
@@ -38,6 +41,9 @@ class _Region(Schema):
     stable: list[list[int]]
     a_min: float = Field(gt=0)
     a_max: float = Field(gt=0)
+    #: the smallest stable a at each Kp of the filter sweep (``{kp: a_min}``); where given, ``a`` is
+    #: checked against the larger of the two bracketing Kp's values instead of the global ``a_min``
+    a_min_by_kp: dict[float, float] | None = None
 
     @model_validator(mode="after")
     def _shape(self):
@@ -48,10 +54,25 @@ class _Region(Schema):
         return self
 
 
+class _Renderable(Schema):
+    measured_by: str
+    damping_n_s_m: list[float] = Field(min_length=1)
+    max_stiffness_n_m: list[float] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _shape(self):
+        if len(self.damping_n_s_m) != len(self.max_stiffness_n_m):
+            raise ValueError("damping_n_s_m and max_stiffness_n_m must have the same length")
+        if sorted(self.damping_n_s_m) != self.damping_n_s_m:
+            raise ValueError("damping_n_s_m must be increasing")
+        return self
+
+
 class GainsFile(Schema):
     gains: _GainsSection
     max_stiffness_n_m: float = Field(gt=0)
     stable_region: _Region
+    renderable_stiffness: _Renderable | None = None
 
 
 def _bracket(values: list[float], x: float) -> list[int] | None:
@@ -84,9 +105,16 @@ def check_gains(gains: Gains, region: _Region, *, file: str | os.PathLike | None
             file=file,
             field="gains",
         )
-    if not region.a_min <= gains.a <= region.a_max:
+    a_min = region.a_min
+    if region.a_min_by_kp:
+        kps = sorted(region.a_min_by_kp)
+        idx = _bracket(kps, gains.kp)
+        if idx is not None:
+            a_min = max(region.a_min_by_kp[kps[i]] for i in idx)
+    if not a_min <= gains.a <= region.a_max:
         raise ConfigError(
-            f"a {gains.a} rad/s is outside the measured stable range {region.a_min}…{region.a_max}", file=file, field="gains.a"
+            f"a {gains.a} rad/s is outside the measured stable range {a_min}…{region.a_max} at kp {gains.kp}",
+            file=file, field="gains.a"
         )
     return gains
 
@@ -109,3 +137,29 @@ def load_gains(path: str | os.PathLike | None = None, *, override: dict | None =
     except ConfigError as exc:
         raise ConfigError(exc.reason, file=path, field=exc.field) from None
     return check_gains(gains, cfg.stable_region, file=path), cfg
+
+
+@lru_cache(maxsize=4)
+def _renderable(path: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    cfg = load_config(path, GainsFile)
+    r = cfg.renderable_stiffness
+    if r is None:
+        return (0.0,), (float(cfg.max_stiffness_n_m),)
+    return tuple(r.damping_n_s_m), tuple(r.max_stiffness_n_m)
+
+
+def max_renderable_stiffness(damping_n_s_m: float, path: str | os.PathLike | None = None) -> float:
+    """The stiffest law (N/m) the device renders stably with normal damping ``damping_n_s_m`` (N·s/m).
+
+    From the file's ``renderable_stiffness`` table (``vishap bench stability``, contact sweep: every
+    mode in its own contact set-up): the entry at the largest measured damping not above the law's
+    (more damping than measured earns nothing), never above the data sheet's stiffness
+    (``PhantomParams.datasheet_stiffness_n_m``). 0 below the smallest measured damping.
+    """
+    from vishap.robot.params import DEFAULT
+
+    bs, ks = _renderable(str(GAINS_FILE if path is None else path))
+    i = bisect.bisect_right(bs, float(damping_n_s_m)) - 1
+    if i < 0:
+        return 0.0
+    return min(float(ks[i]), DEFAULT.datasheet_stiffness_n_m)

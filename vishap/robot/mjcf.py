@@ -2,9 +2,10 @@
 
 One source of truth: lengths, masses, joint limits, damping and the servo rate all come from a
 :class:`PhantomParams`. The arm is a tree — turret (θ1) → upper arm (θ2) → forearm (relative
-elbow joint ``θ3 − θ2``) → passive object — with the parallelogram's masses lumped so that the first
+elbow joint ``θ3 − θ2``) → passive object — with the parallelogram's crank carried by motor 3's
+tendon (its inertia as armature, its gravity torque applied by the plant), so that the first
 moments, hence the gravity torques, equal Cavusoglu's Eq. 7 exactly (see
-:attr:`PhantomParams.lumped_bodies`). The third motor drives a fixed tendon ``θ2 + elbow = θ3``,
+:attr:`PhantomParams.tree_bodies`). The third motor drives a fixed tendon ``θ2 + elbow = θ3``,
 the PHANToM's absolute forearm angle, so actuator ``i`` applies the motor torque ``τ_i`` of joint
 ``θ_i`` (VisHap's convention), and the tendon limit is θ3's joint limit.
 
@@ -68,14 +69,19 @@ def build_mjcf(params: PhantomParams = DEFAULT, *, substeps: int = 1, passive_ob
     if abs(m_obj - params.m_tip) > 1e-12:
         raise ValueError(f"passive object mass {m_obj} kg differs from params.m_tip {params.m_tip} kg")
     p = params
-    bodies = p.lumped_bodies
+    bodies = p.tree_bodies
     m_u, d_u = bodies["upper_arm"]
     m_f, d_f = bodies["forearm"]
-    # inertias about the lumped CoMs: slender rods of the link lengths (estimates)
-    iu = m_u * (0.12**2) / 12.0
-    if_ = m_f * (p.l2**2) / 12.0
+    a3 = p.armature[2] + p.crank_inertia  # the crank turns with θ3: its inertia rides on motor 3
+    # inertias about the lumped CoMs (fitted to the data sheet's apparent mass, see params)
+    iu = p.upper_arm_inertia
+    if_ = p.forearm_inertia
     ts = 1.0 / (p.servo_rate_hz * substeps)
-    joint = f'damping="{_f(p.joint_damping)}" armature="{_f(p.armature)}"'
+    fr1, fr2, fr3 = p.joint_friction_nm
+    a1, a2 = p.armature[0], p.armature[1]
+
+    def joint(arm: float, fric: float) -> str:
+        return f'damping="{_f(p.joint_damping)}" armature="{_f(arm)}" frictionloss="{_f(fric)}"'
     vis = 'contype="0" conaffinity="0" group="1"'
 
     obj = ""
@@ -103,15 +109,15 @@ def build_mjcf(params: PhantomParams = DEFAULT, *, substeps: int = 1, passive_ob
   <worldbody>
     <geom name="base" type="cylinder" pos="0 0 {_f(-0.5 * p.l2)}" size="0.04 0.01" {vis} rgba="0.2 0.2 0.2 1"/>
     <body name="turret" pos="0 0 0">
-      <joint name="theta1" type="hinge" axis="0 0 1" range="{_f(p.q_min[0])} {_f(p.q_max[0])}" {joint}/>
+      <joint name="theta1" type="hinge" axis="0 0 1" range="{_f(p.q_min[0])} {_f(p.q_max[0])}" {joint(a1, fr1)}/>
       <inertial pos="0 0 0" mass="0.2" diaginertia="{_f(p.turret_inertia)} {_f(p.turret_inertia)} {_f(p.turret_inertia)}"/>
       <geom type="cylinder" fromto="0 0 {_f(-0.5 * p.l2)} 0 0 0" size="0.02" {vis} rgba="0.2 0.2 0.2 1"/>
       <body name="upper_arm" pos="0 0 0">
-        <joint name="theta2" type="hinge" axis="0 -1 0" range="{_f(p.q_min[1])} {_f(p.q_max[1])}" {joint}/>
+        <joint name="theta2" type="hinge" axis="0 -1 0" range="{_f(p.q_min[1])} {_f(p.q_max[1])}" {joint(a2, fr2)}/>
         <inertial pos="{_f(d_u)} 0 0" mass="{_f(m_u)}" diaginertia="1e-5 {_f(iu)} {_f(iu)}"/>
         <geom type="capsule" fromto="0 0 0 {_f(p.l1)} 0 0" size="0.006" {vis} rgba="0.3 0.3 0.3 1"/>
         <body name="forearm" pos="{_f(p.l1)} 0 0">
-          <joint name="elbow" type="hinge" axis="0 -1 0" range="{_f(p.elbow_min)} {_f(p.elbow_max)}" {joint}/>
+          <joint name="elbow" type="hinge" axis="0 -1 0" range="{_f(p.elbow_min)} {_f(p.elbow_max)}" {joint(0.0, 0.0)}/>
           <inertial pos="0 0 {_f(-d_f)}" mass="{_f(m_f)}" diaginertia="{_f(if_)} {_f(if_)} 1e-6"/>
           <geom type="capsule" fromto="0 0 0 0 0 {_f(-p.l2)}" size="0.004" {vis} rgba="0.3 0.3 0.3 1"/>
           <site name="tip" pos="0 0 {_f(-p.l2)}" size="0.003"/>{obj}
@@ -120,7 +126,7 @@ def build_mjcf(params: PhantomParams = DEFAULT, *, substeps: int = 1, passive_ob
     </body>
   </worldbody>
   <tendon>
-    <fixed name="theta3" range="{_f(p.q_min[2])} {_f(p.q_max[2])}">
+    <fixed name="theta3" range="{_f(p.q_min[2])} {_f(p.q_max[2])}" armature="{_f(a3)}" frictionloss="{_f(fr3)}">
       <joint joint="theta2" coef="1"/>
       <joint joint="elbow" coef="1"/>
     </fixed>

@@ -63,10 +63,34 @@ class PhantomParams:
     workspace_min: tuple[float, float, float] = WORKSPACE_MIN
     workspace_max: tuple[float, float, float] = WORKSPACE_MAX
 
-    # dynamics of the simulated arm beyond Cavusoglu's gravity parameters (estimates)
+    # dynamics of the simulated arm beyond Cavusoglu's gravity parameters. Cavusoglu et al. give
+    # masses and first moments; the link inertias are slender rods, and the turret inertia and the
+    # motors' reflected inertias are fitted (least squares on log mass) so that the tip's apparent
+    # mass lies near the data sheet's "apparent mass at tip < 75 g": 0.044 / 0.060 / 0.070 kg at
+    # (0.2, 0, −0.12) m (docs/robot.md gives the range over the workspace; MujocoPlant.apparent_mass)
     joint_damping: float = 2.0e-4  # N·m·s/rad, capstan/bearing viscous friction per joint
-    armature: float = 1.0e-4  # kg·m², reflected rotor inertia per joint
-    turret_inertia: float = 2.0e-3  # kg·m², base yaw (θ1) inertia excluding the arm
+    #: kg·m², reflected rotor inertia of motors 1, 2, 3 (motor 3 drives θ3, the tendon θ2 + elbow)
+    armature: tuple[float, float, float] = (4.0e-5, 1.1e-3, 8.0e-4)
+    turret_inertia: float = 1.1e-3  # kg·m², base yaw (θ1) inertia excluding the arm
+    #: kg·m², pitch inertia of the lumped upper arm and forearm about their centres of mass
+    upper_arm_inertia: float = 0.2608 * 0.12**2 / 12.0  # (m_be + m_c) · (0.12 m)² / 12
+    forearm_inertia: float = 0.0202 * 0.170**2 / 12.0  # m_a · l2² / 12
+    #: N, Coulomb (backdrive) friction at the tip — data sheet 0.04 N; applied per joint as the
+    #: torque it takes at the joint's lever (θ1: the nominal radius; θ2: l1; θ3: l2)
+    coulomb_friction_n: float = 0.04
+    #: m, the radius at which the yaw joint's friction torque is taken
+    nominal_radius_m: float = 0.215
+    #: rad, encoder resolution: the data sheet's nominal position resolution 0.03 mm at the nominal radius
+    encoder_resolution_rad: float = 1.5e-4
+    #: N·m, per-motor peak torque (amplifier current limit × torque constant, at the joint): the peak
+    #: force at each joint's lever in the nominal pose (θ1: the nominal radius, θ2: l1, θ3: l2); the
+    #: motors' type is not in the data sheet, so these are the figures the peak force implies
+    motor_peak_torque_nm: tuple[float, float, float] = (8.5 * 0.215, 8.5 * 0.215, 8.5 * 0.170)
+    #: A, amplifier current limits (peak, continuous) and N·m/A, torque constant referred to each joint
+    amp_peak_current_a: float = 6.0
+    amp_continuous_current_a: float = 1.0
+    #: N/m, the data sheet's closed-loop stiffness (3.5 N/mm): no virtual stiffness may exceed it
+    datasheet_stiffness_n_m: float = 3500.0
     servo_rate_hz: float = 1000.0
 
     @property
@@ -94,23 +118,47 @@ class PhantomParams:
         return replace(self, m_a=self.m_a + float(m_object), m_tip=0.0)
 
     @property
-    def lumped_bodies(self) -> dict[str, tuple[float, float]]:
-        """(mass kg, CoM offset m) of the two rigid bodies of the simulated tree.
+    def tree_bodies(self) -> dict[str, tuple[float, float]]:
+        """(mass kg, CoM offset m) of the two rigid bodies of the simulated tree, and the crank.
 
-        A parallelogram is a closed chain; the MuJoCo model is a tree with the same first moments
-        (mass × CoM offset), hence exactly the same gravity torques as Eq. 7: the θ3 drive crank
-        (m_df) and the upper arm (m_be) become one body following θ2 with its CoM at ``d_u`` along
-        l1; the forearm (m_a) and the coupler (m_c) become one body following θ3 with its CoM at
-        ``d_f`` along l2 (from the elbow). Inertias of these bodies are estimates.
+        A parallelogram is a closed chain; the MuJoCo model is a tree: the upper arm (m_be, with the
+        coupler's m_c at 0.5·l1) follows θ2 with its CoM at ``d_u`` along l1; the forearm (m_a) follows
+        θ3 with its CoM at 0.5·l2 from the elbow. The θ3 drive crank with its counterweight (m_df at
+        −l6) and the coupler's offset along it (m_c at l3) turn about the shoulder with θ3: their
+        inertia ``crank_inertia`` rides on motor 3's tendon as armature, and their gravity torque
+        ``crank_gravity_nm``·sin θ3 is applied by the plant. First moments, hence gravity torques,
+        equal Eq. 7 exactly; the second moments follow the links instead of being a by-product of
+        lumping (a lumped tree put 0.045 kg 0.17 m above the elbow and made the tip 3× heavier).
         """
-        c2, c3 = self.gravity_coefficients
-        c2_0 = c2 / self.g - self.l1 * self.m_tip
-        c3_0 = c3 / self.g - self.l2 * self.m_tip
-        m_f = self.m_a + self.m_c
-        m_u = self.m_be + self.m_df
-        d_f = c3_0 / m_f
-        d_u = (c2_0 - m_f * self.l1) / m_u
-        return {"upper_arm": (m_u, d_u), "forearm": (m_f, d_f)}
+        m_u = self.m_be + self.m_c
+        d_u = (self.m_be * self.l5 + 0.5 * self.l1 * self.m_c) / m_u
+        return {"upper_arm": (m_u, d_u), "forearm": (self.m_a, 0.5 * self.l2)}
+
+    @property
+    def crank_inertia(self) -> float:
+        """Inertia (kg·m²) about the shoulder of the parts turning with θ3: m_df at l6, m_c at l3."""
+        return self.m_df * self.l6**2 + self.m_c * self.l3**2
+
+    @property
+    def crank_gravity_nm(self) -> float:
+        """The crank's share of Eq. 7's sin θ3 coefficient (N·m): g·(m_c·l3 − m_df·l6)."""
+        return self.g * (self.m_c * self.l3 - self.m_df * self.l6)
+
+    @property
+    def motor_kt_nm_a(self) -> tuple[float, float, float]:
+        """Torque constant referred to each joint (N·m/A): peak torque at the amplifier's peak current."""
+        return tuple(t / self.amp_peak_current_a for t in self.motor_peak_torque_nm)
+
+    @property
+    def motor_continuous_torque_nm(self) -> tuple[float, float, float]:
+        """Per-motor torque at the amplifier's continuous current (N·m)."""
+        return tuple(k * self.amp_continuous_current_a for k in self.motor_kt_nm_a)
+
+    @property
+    def joint_friction_nm(self) -> tuple[float, float, float]:
+        """Coulomb friction torque of joints θ1, θ2, θ3 (N·m) giving ``coulomb_friction_n`` at the tip."""
+        f = self.coulomb_friction_n
+        return (f * self.nominal_radius_m, f * self.l1, f * self.l2)
 
     @property
     def q_min_array(self) -> np.ndarray:

@@ -3,11 +3,16 @@
 :class:`MujocoPlant` is a :class:`~vishap.robot.device.Device`. Each :meth:`MujocoPlant.step`
 advances one servo period (1 ms) in ``substeps`` physics steps with the last command held (a
 zero-order hold, as a real amplifier does). Optional ``delay_ticks`` delays every command by whole
-servo periods (transport delay, for the stability study). An external tip force (the finger) can
-be applied with :meth:`MujocoPlant.apply_tip_force`.
+servo periods (transport delay, for the stability study); ``jitter_s`` (measured servo tick
+durations, s) delays each command by one of them drawn at random, down to a physics substep — the
+servo's measured jitter as a delay. Each motor's amplifier saturates at its peak torque
+(``params.motor_peak_torque_nm``, the current limit); joints carry Coulomb friction
+(``params.coulomb_friction_n`` at the tip). An external tip force (the finger) can be applied with
+:meth:`MujocoPlant.apply_tip_force`.
 """
 from __future__ import annotations
 
+import math
 from collections import deque
 
 import mujoco
@@ -54,7 +59,9 @@ class MujocoPlant(Device):
         q0=None,
         max_stiffness_n_m: float | None = None,
         sensor: str = "exact",
-        encoder_resolution_rad: float = 1.5e-4,
+        encoder_resolution_rad: float | None = None,
+        jitter_s=None,
+        seed: int = 0,
     ):
         m_tip = 0.0 if passive_object is None else passive_object.mass_kg
         self.params = params.with_tip_mass(m_tip)
@@ -85,10 +92,23 @@ class MujocoPlant(Device):
         if sensor not in ("exact", "encoder"):
             raise ValueError(f"sensor: expected 'exact' or 'encoder', got {sensor!r}")
         self.sensor = sensor
-        self._res = float(encoder_resolution_rad)
+        self._res = float(params.encoder_resolution_rad if encoder_resolution_rad is None else encoder_resolution_rad)
         if sensor == "encoder" and not self._res > 0:
             raise ValueError(f"encoder_resolution_rad: expected > 0, got {encoder_resolution_rad!r}")
         self._enc = None  # (θ1, θ2, θ3, θ̇1, θ̇2, θ̇3) of the encoder model
+        self._amp = tuple(float(v) for v in self.params.motor_peak_torque_nm)
+        self._crank_g = float(self.params.crank_gravity_nm)  # the crank's gravity, applied each period
+        self._tip_qfrc = (0.0, 0.0, 0.0)
+        self.n_amp_saturated = 0
+        self._jitter = None
+        if jitter_s is not None:
+            j = np.asarray(jitter_s, dtype=np.float64).ravel()
+            if j.size == 0 or not np.all(np.isfinite(j)) or np.any(j < 0):
+                raise ValueError(f"jitter_s: expected finite delays ≥ 0 s, got {j.size} values")
+            self._jitter = j
+            self._rng = np.random.default_rng(seed)
+        self._late: deque = deque()  # (time the command reaches the motors, τ) with jitter
+        self._t_last_apply = 0.0
         self._t = 0.0
         self.reset(q0)
 
@@ -103,6 +123,7 @@ class MujocoPlant(Device):
         if not np.all(np.isfinite(q)):
             raise ShapeError(f"q: expected finite joint angles, got {q.tolist()}")
         mujoco.mj_resetData(self.model, self.data)
+        self._tip_qfrc = (0.0, 0.0, 0.0)
         self._qpos[:] = (q[0], q[1], q[2] - q[1])
         self._qvel[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
@@ -111,6 +132,8 @@ class MujocoPlant(Device):
             self._enc = self._encoder_angles() + (0.0, 0.0, 0.0)
         if self._pending is not None:
             self._pending = deque([(0.0, 0.0, 0.0)] * self.delay_ticks)
+        self._late.clear()
+        self._t_last_apply = self._t
 
     def read(self) -> DeviceState:
         t1, t2, t3, w1, w2, w3 = self.read_scalar()
@@ -142,19 +165,56 @@ class MujocoPlant(Device):
         if self._pending is not None:
             self._pending.append((tau1, tau2, tau3))
             tau1, tau2, tau3 = self._pending.popleft()
+        a1, a2, a3 = self._amp  # the amplifiers' current limits
+        if tau1 > a1 or tau1 < -a1 or tau2 > a2 or tau2 < -a2 or tau3 > a3 or tau3 < -a3:
+            self.n_amp_saturated += 1
+            tau1, tau2, tau3 = min(max(tau1, -a1), a1), min(max(tau2, -a2), a2), min(max(tau3, -a3), a3)
+        if self._jitter is not None:  # the command reaches the motors once the tick that made it is over
+            d = float(self._jitter[self._rng.integers(self._jitter.size)])
+            ta = max(self._t + d, self._t_last_apply)  # ticks run one after another
+            self._t_last_apply = ta
+            self._late.append((ta, (tau1, tau2, tau3)))
+            return
         ctrl = self._ctrl
         ctrl[0] = tau1
         ctrl[1] = tau2
         ctrl[2] = tau3
 
     def step(self) -> None:
-        self._mj_step(self._m, self._d, self.substeps)
+        # the crank's gravity torque on θ3 (it is not a body of the tree), with the finger's push
+        b, c = self._qpos[1], self._qpos[2]
+        tg = -self._crank_g * math.sin(b + c)
+        f = self._tip_qfrc
+        qf = self._qfrc_applied
+        qf[0] = f[0]
+        qf[1] = f[1] + tg
+        qf[2] = f[2] + tg
+        if self._late:
+            self._step_jittered()
+        else:
+            self._mj_step(self._m, self._d, self.substeps)
         self._t += self.dt
         if self._enc is not None:
             e = self._enc
             a, b, c = self._encoder_angles()
             k = 1.0 / self.dt
             self._enc = (a, b, c, (a - e[0]) * k, (b - e[1]) * k, (c - e[2]) * k)
+
+    def _step_jittered(self) -> None:
+        """One period in substeps, each late command switched in at the first substep it has reached."""
+        h = self.dt / self.substeps
+        late, ctrl = self._late, self._ctrl
+        done = 0
+        while done < self.substeps:
+            t_sub = self._t + done * h
+            while late and late[0][0] <= t_sub + 1e-12:
+                ctrl[:] = late.popleft()[1]
+            # run until the next command is due (or the period ends)
+            n = self.substeps - done
+            if late:
+                n = min(n, max(1, int(math.ceil((late[0][0] - t_sub) / h - 1e-9))))
+            self._mj_step(self._m, self._d, n)
+            done += n
 
     # -- simulation extras ----------------------------------------------------------------------
     def apply_tip_force(self, F_robot) -> None:
@@ -168,7 +228,25 @@ class MujocoPlant(Device):
         a, b, c = self._qpos.tolist()
         t1, t2, t3 = a, b, b + c
         tau = kinematics.jacobian((t1, t2, t3), self.params).T @ F
-        self._qfrc_applied[:] = (tau[0], tau[1] + tau[2], tau[2])
+        self._tip_qfrc = (float(tau[0]), float(tau[1] + tau[2]), float(tau[2]))
+
+    def apparent_mass(self, q=None) -> np.ndarray:
+        """Eigenvalues (kg, ascending) of the tip's apparent mass ``(J M⁻¹ Jᵀ)⁻¹`` at joint angles
+        ``q`` (default: the current ones), from MuJoCo's own mass matrix; the state is left as it was."""
+        m, d = self._m, self._d
+        saved = self._qpos.copy()
+        if q is not None:
+            q = np.asarray(q, dtype=np.float64).reshape(3)
+            self._qpos[:] = (q[0], q[1], q[2] - q[1])
+        mujoco.mj_forward(m, d)
+        M = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, M)
+        jp = np.zeros((3, m.nv))
+        mujoco.mj_jacSite(m, d, jp, None, self._site_tip)
+        ev = np.linalg.eigvalsh(np.linalg.inv(jp @ np.linalg.solve(M, jp.T)))
+        self._qpos[:] = saved
+        mujoco.mj_forward(m, d)
+        return ev
 
     def tip_position(self) -> np.ndarray:
         """Tip site position from MuJoCo (m, robot frame) — an independent check of :func:`fk`."""

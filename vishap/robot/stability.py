@@ -7,7 +7,11 @@ Two scenarios, each a short simulated run of :class:`~vishap.robot.servo.ServoLo
   moves 3 cm along a smooth path, then holds; the tip must follow and settle.
 * :func:`run_wall` — a unilateral virtual wall ``F = K·d + B·ḋ`` (depth ``d`` along the normal,
   the rendering the Colgate–Schenkel passivity bound ``b > K·T/2 + |B|`` is about) with a finger
-  pushing the tip into it with a constant force.
+  pushing the tip into it with a constant force. With ``RunSpec.mode`` set it runs that interaction
+  mode's own contact set-up instead: the mode's force law (``modes.yaml``) with its stiffest part
+  set to ``wall_k`` and its damping to ``wall_b``, the mode's contact gain Λ (λ_z = 0: the law gives
+  the normal force), and — with ``jitter`` — each command delayed by a servo tick duration drawn
+  from the demos' measured ones (:data:`SERVO_TICK_MS`).
 
 :func:`classify` labels the settled part of a run ``stable``, ``oscillating`` (bounded but not
 settling: limit cycles, ringing, chatter) or ``diverged`` (non-finite state, the tip thrown out of
@@ -26,11 +30,30 @@ from vishap.robot.mjcf import PassiveObject
 from vishap.robot.plant import MujocoPlant
 from vishap.robot.servo import ServoLoop
 
-__all__ = ["RunSpec", "run_free_space", "run_wall", "classify", "passivity_margin", "tip_damping"]
+__all__ = ["RunSpec", "run_free_space", "run_wall", "classify", "passivity_margin", "tip_damping",
+           "measured_jitter_s", "jitter_from_log", "contact_law", "SERVO_TICK_PERCENTILES", "SERVO_TICK_MS"]
 
 START = np.array([0.215, 0.0, -0.170])  # home
 STEP = np.array([-0.02, 0.015, 0.015])  # 3 cm move of the free-space run
 WALL_POINT = np.array([0.200, 0.0, -0.150])  # on the scenes' table plane, normal +z
+
+#: Servo tick durations (compute time of one tick, ms) at these percentiles, measured in the wall and
+#: button demos (seeds 0–4, encoder, 10 substeps: 49 165 ticks, the project's shared 2-core machine;
+#: `servo/tick_us` of their logs). A command reaches the motors that long after its tick began.
+SERVO_TICK_PERCENTILES = (0.0, 10.0, 25.0, 50.0, 75.0, 90.0, 95.0, 99.0, 99.5, 99.9, 99.95)
+SERVO_TICK_MS = (0.059, 0.091, 0.099, 0.111, 0.127, 0.167, 0.231, 0.352, 0.485, 8.16, 12.6)
+
+
+def measured_jitter_s(n: int = 2000) -> np.ndarray:
+    """``n`` tick durations (s) spread evenly over the measured distribution (its inverse CDF)."""
+    u = (np.arange(n) + 0.5) / n * SERVO_TICK_PERCENTILES[-1]
+    return np.interp(u, SERVO_TICK_PERCENTILES, SERVO_TICK_MS) * 1e-3
+
+
+def jitter_from_log(path) -> np.ndarray:
+    """The servo tick durations (s) of a demo's ``log.npz`` (``servo/tick_us``)."""
+    with np.load(path) as log:
+        return np.asarray(log["servo/tick_us"], dtype=np.float64) * 1e-6
 
 
 @dataclass
@@ -49,6 +72,11 @@ class RunSpec:
     wall_b: float = 0.0
     push_n: float = 1.0
     duration_s: float = 1.2
+    #: interaction mode (``modes.yaml`` name) whose contact set-up :func:`run_wall` uses; None: a bare
+    #: spring–damper wall with Λ = I (the servo's PD also holds the tip along the normal)
+    mode: str | None = None
+    #: delay each command by a measured servo tick duration (:func:`measured_jitter_s`)
+    jitter: bool = False
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -56,7 +84,8 @@ class RunSpec:
 
 def _make(spec: RunSpec, q0=None):
     plant = MujocoPlant(
-        passive_object=PassiveObject(), substeps=spec.substeps, delay_ticks=spec.delay_ticks, sensor=spec.sensor, q0=q0
+        passive_object=PassiveObject(), substeps=spec.substeps, delay_ticks=spec.delay_ticks, sensor=spec.sensor, q0=q0,
+        jitter_s=measured_jitter_s() if spec.jitter else None,
     )
     ctrl = Controller(plant.params, Gains(kp=spec.kp, kv=spec.kv, a=spec.a, ramp_s=0.0), limits=plant.limits)
     return plant, ctrl
@@ -106,12 +135,20 @@ def run_wall(spec: RunSpec) -> dict:
     plant, ctrl = _make(spec, q0=ik(WALL_POINT))
     z_wall = float(WALL_POINT[2])
     K, B = float(spec.wall_k), float(spec.wall_b)
+    if spec.mode is not None:
+        law = contact_law(spec.mode, K, B, max_force_n=plant.limits.peak_force_n)
+        ctrl.set_lambda(law.lambda_contact)
 
-    def wall(t, p_robot, v_robot):
-        d = z_wall - p_robot[2]  # penetration depth (m)
-        if d <= 0.0:
-            return None
-        return np.array([0.0, 0.0, K * d - B * v_robot[2]])
+        def wall(t, p_robot, v_robot):
+            if law.depth(p_robot) <= 0.0:
+                return None
+            return law.force_robot(p_robot, v_robot)
+    else:
+        def wall(t, p_robot, v_robot):
+            d = z_wall - p_robot[2]  # penetration depth (m)
+            if d <= 0.0:
+                return None
+            return np.array([0.0, 0.0, K * d - B * v_robot[2]])
 
     servo = ServoLoop(plant, ctrl, policy="hold", force_callback=wall)
     n = int(round(spec.duration_s * plant.params.servo_rate_hz))
@@ -135,6 +172,32 @@ def run_wall(spec: RunSpec) -> dict:
             break
     # the equilibrium depth under the push: K_total = K + Kp along the normal
     return _summarise(spec, p, ref, plant.dt, ctrl, status, settle_from=0.6)
+
+
+def contact_law(mode: str, stiffness_n_m: float, damping_n_s_m: float, *, max_force_n: float = 8.5):
+    """Mode ``mode``'s force law on the plane z = WALL_POINT_z (normal +z), its stiffest part set to
+    ``stiffness_n_m`` (a wall's spring, a key's bottom board, a fabric's penalty) and its normal
+    damping to ``damping_n_s_m``; ``lambda_contact`` is the mode's contact gain. The key travels
+    4 mm and clicks at 1.8 mm (the scenes' key)."""
+    from vishap.world import force_laws as fl
+    from vishap.world.modes import default_modes
+
+    m = default_modes().get(mode)
+    law = m.law
+    n, off = (0.0, 0.0, 1.0), float(WALL_POINT[2])
+    if law.kind == "wall_spring":
+        built = fl.WallSpring(n, off, stiffness_n_m=stiffness_n_m, damping_n_s_m=damping_n_s_m, max_force_n=max_force_n)
+    elif law.kind == "button_click":
+        built = fl.ButtonClick(n, off, trigger_depth_m=0.0018, travel_m=0.004, k_resist_n_m=law.k_resist_n_m,
+                               k_click_n_m=law.k_click_n_m, k_bottom_n_m=stiffness_n_m, transition_m=law.transition_m,
+                               damping_n_s_m=damping_n_s_m, max_force_n=max_force_n)
+    else:
+        R = np.eye(3)
+        built = fl.FabricFriction(R, WALL_POINT, mu_static=0.6, mu_kinetic=0.4, k_penalty_n_m=stiffness_n_m,
+                                  k_tangential_n_m=law.k_tangential_n_m, damping_n_s_m=damping_n_s_m,
+                                  damping_tangential_n_s_m=law.damping_tangential_n_s_m, max_force_n=max_force_n)
+    built.lambda_contact = tuple(float(v) for v in m.contact_gain)
+    return built
 
 
 def _summarise(spec, p, ref, dt, ctrl, status, *, settle_from: float) -> dict:

@@ -19,7 +19,8 @@ from vishap.robot.mjcf import PassiveObject
 from vishap.robot.plant import MujocoPlant
 from vishap.robot.servo import ServoLoop
 
-__all__ = ["CENTRE", "step_response", "ramp_response", "moving_target", "step_metrics", "finger_path"]
+__all__ = ["CENTRE", "step_response", "ramp_response", "moving_target", "step_metrics", "finger_path", "band_rms",
+           "hold_and_approach"]
 
 CENTRE = np.array([0.200, 0.0, -0.120])
 
@@ -145,3 +146,45 @@ def moving_target(gains: Gains, policy: str, rate_hz: float, *, duration_s: floa
         "p": p,
         "truth": truth,
     }
+
+
+def band_rms(x, fs: float, lo_hz: float = 0.0, hi_hz: float = math.inf) -> float:
+    """RMS (over all columns together) of the part of ``x`` between ``lo_hz`` and ``hi_hz`` (its mean
+    removed), from the FFT: Parseval on the one-sided spectrum."""
+    x = np.asarray(x, dtype=np.float64)
+    x = x.reshape(len(x), -1) - np.mean(x, axis=0).reshape(1, -1)
+    if len(x) < 4:
+        return 0.0
+    X = np.fft.rfft(x, axis=0)
+    f = np.fft.rfftfreq(len(x), 1.0 / fs)
+    w = np.where((f > lo_hz) & (f <= hi_hz), 2.0, 0.0)
+    w[0] = 0.0
+    if len(x) % 2 == 0:
+        w[-1] = np.where(w[-1] > 0, 1.0, 0.0)
+    return float(np.sqrt(np.sum(w[:, None] * np.abs(X) ** 2) / len(x) ** 2))
+
+
+def hold_and_approach(gains: Gains, scenario: str, *, seconds: float = 2.0, vision_hz: float = 30.0,
+                      speed_m_s: float = 0.1, substeps: int = 10, settle_s: float = 0.6) -> dict:
+    """The servo as the demos run it (encoder, ``substeps``, ``interpolate`` policy) holding still
+    (``scenario="hold"``) or following a target that moves at ``speed_m_s`` along x, sampled at
+    ``vision_hz`` (``"approach"``). Returns the commanded PD force ``F`` (N, per tick), the true tip
+    position ``p`` (m, MuJoCo's, not the encoder's) and the tick times after ``settle_s``."""
+    if scenario not in ("hold", "approach"):
+        raise ValueError(f"scenario: expected 'hold' or 'approach', got {scenario!r}")
+    p0 = CENTRE
+    plant = MujocoPlant(passive_object=PassiveObject(), q0=ik(p0), substeps=substeps, sensor="encoder")
+    ctrl = Controller(plant.params, gains, limits=plant.limits)
+    servo = ServoLoop(plant, ctrl, policy="interpolate")
+    n = int(round(seconds * plant.params.servo_rate_hz))
+    F = np.empty((n, 3))
+    P = np.empty((n, 3))
+    for k in range(n):
+        t = k * plant.dt
+        ts = math.floor(t * vision_hz + 1e-9) / vision_hz
+        X = p0 if scenario == "hold" else p0 + np.array([speed_m_s * min(ts, 1.0) - 0.5 * speed_m_s, 0.0, 0.0])
+        servo.tick(t, X, t_sample=ts)
+        F[k] = ctrl.F_pd
+        P[k] = plant.tip_position()
+    i0 = int(settle_s * plant.params.servo_rate_hz)
+    return {"t": np.arange(i0, n) * plant.dt, "F": F[i0:], "p": P[i0:]}

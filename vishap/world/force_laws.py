@@ -214,7 +214,17 @@ class FabricFriction(_PlaneLaw):
 
 
 def make_law(obj, *, max_force_n: float = DEFAULT_MAX_FORCE_N):
-    """The force law for one :class:`~vishap.world.scene.SceneObject`, from its mode and spec."""
+    """The force law for one :class:`~vishap.world.scene.SceneObject`, from its mode and spec.
+
+    A law stiffer than the device renders stably at its damping (a scene's own key stiffness
+    included) is refused with a :class:`~vishap._core.errors.ConfigError` naming the field."""
+    from vishap.world.modes import check_stiffness, law_stiffnesses
+
+    items = law_stiffnesses(obj.mode.law)
+    if obj.mode.law.kind == "button_click":  # the scene's key may override the mode's springs
+        s = obj.spec.stiffness
+        items = [(f, getattr(s, f) or k, b) for f, k, b in items]
+    check_stiffness(items, prefix=f"objects.{obj.name}.")
     built = _make_law(obj, max_force_n)
     built.lambda_contact = tuple(float(v) for v in obj.mode.contact_gain)
     return built

@@ -28,6 +28,8 @@ __all__ = [
     "DEFAULT_MODES",
     "load_modes",
     "default_modes",
+    "check_stiffness",
+    "law_stiffnesses",
 ]
 
 DEFAULT_MODES = Path(__file__).with_name("modes.yaml")
@@ -123,7 +125,33 @@ def load_modes(path: str | os.PathLike = DEFAULT_MODES) -> ModeDatabase:
             raise ConfigError(
                 f"law {mode.law.kind!r} cannot render {sorted(bad)} objects", file=path, field=f"{name}.kinds"
             )
+        check_stiffness(law_stiffnesses(mode.law), file=path, prefix=f"{name}.law.")
     return db
+
+
+def law_stiffnesses(law) -> list[tuple[str, float, float]]:
+    """``(field, stiffness N/m, damping N·s/m)`` of every spring a law renders (the button's bottom
+    board included; a fabric's tangential spring with its tangential damping)."""
+    if law.kind == "wall_spring":
+        return [("stiffness_n_m", law.stiffness_n_m, law.damping_n_s_m)]
+    if law.kind == "button_click":
+        return [(f, getattr(law, f), law.damping_n_s_m) for f in ("k_resist_n_m", "k_click_n_m", "k_bottom_n_m")]
+    return [("k_penalty_n_m", law.k_penalty_n_m, law.damping_n_s_m),
+            ("k_tangential_n_m", law.k_tangential_n_m, law.damping_tangential_n_s_m)]
+
+
+def check_stiffness(items, *, file=None, prefix: str = "") -> None:
+    """Refuse (:class:`ConfigError` naming ``prefix + field``) any ``(field, K, B)`` stiffer than the
+    device renders stably at damping B (:func:`vishap.robot.gains.max_renderable_stiffness`)."""
+    from vishap.robot.gains import max_renderable_stiffness
+
+    for field, k, b in items:
+        k_max = max_renderable_stiffness(b)
+        if k > k_max:
+            raise ConfigError(
+                f"{k:g} N/m is stiffer than the device renders stably with {b:g} N·s/m of damping "
+                f"(at most {k_max:g} N/m: `vishap bench stability`, contact sweep, capped at the data sheet's "
+                f"3.5 N/mm); lower it or add damping", file=file, field=f"{prefix}{field}")
 
 
 @lru_cache(maxsize=1)

@@ -1,0 +1,113 @@
+"""The object-gain scheduler: few Λ changes, each ramped, no chatter on a noisy depth, force ramps."""
+import numpy as np
+import pytest
+
+from vishap._core.errors import ConfigError
+from vishap.robot.controller import Controller
+from vishap.robot.object_gain import ENGAGED, FREE, SURFACE, ObjectGainScheduler
+
+DT = 1e-3
+
+
+def _run(sched, depths, *, imminent=True, actions=None, t0=0.0):
+    Ls, scales, states = [], [], []
+    for i, d in enumerate(depths):
+        a = "track" if actions is None else actions[i]
+        L, s = sched.step(t0 + i * DT, float(d), imminent, d > 0, a)
+        Ls.append(np.array(L))
+        scales.append(s)
+        states.append(sched.state)
+    return np.array(Ls), np.array(scales), states
+
+
+def _changes(states):
+    return sum(1 for a, b in zip(states, states[1:]) if a != b)
+
+
+def _approach(rng, sigma=40e-6):
+    """Device approaching the surface, touching, pressed in 3 mm, then held — with encoder-like noise."""
+    d = np.concatenate([np.linspace(-0.02, 0.0, 300), np.linspace(0.0, 0.003, 200), np.full(500, 0.003)])
+    return d + rng.normal(0.0, sigma, d.size)
+
+
+def test_an_approach_changes_lambda_at_most_twice_each_over_20ms():
+    rng = np.random.default_rng(0)
+    s = ObjectGainScheduler(dt=DT)
+    s.set_subject((0.0, 0.0, 0.0), np.eye(3))
+    Ls, _, states = _run(s, _approach(rng))
+    assert _changes(states) == 2 and states[-1] == ENGAGED
+    assert np.allclose(Ls[0], np.eye(3)) and np.allclose(Ls[-1], 0.0)
+    # each change is a linear blend: no entry moves by more than dt / 20 ms per tick
+    assert np.max(np.abs(np.diff(Ls, axis=0))) <= DT / 0.020 + 1e-12
+    # and each blend took at least 20 ms: count the ticks during which Λ moved
+    moving = np.any(np.abs(np.diff(Ls, axis=0)) > 1e-12, axis=(1, 2))
+    runs = np.diff(np.flatnonzero(np.diff(np.r_[0, moving.astype(int), 0])))[::2]
+    assert len(runs) == 2 and np.all(runs >= 20)
+
+
+def test_no_chatter_with_noisy_depth_sitting_on_each_threshold():
+    rng = np.random.default_rng(1)
+    for level in (0.0001, 0.0003, -0.001):  # surface_on, engage, release thresholds
+        s = ObjectGainScheduler(dt=DT)
+        s.set_subject((0.0, 0.0, 0.0), np.eye(3))
+        _run(s, np.linspace(-0.005, 0.0006, 200))  # brings the state to ENGAGED
+        d = level + rng.normal(0.0, 60e-6, 2000)  # 2 s of noise around the threshold
+        _, _, states = _run(s, d, t0=0.2)
+        assert _changes(states) <= 2, level
+
+
+def test_a_naive_threshold_would_chatter_on_the_same_depth():
+    # the same noisy depth through the old rule (Λ = contact gain iff depth > engage_m) flips often:
+    # the test above is only meaningful because this one does
+    rng = np.random.default_rng(1)
+    d = 0.0003 + rng.normal(0.0, 60e-6, 2000)
+    flips = np.count_nonzero(np.diff((d > 0.0003).astype(int)))
+    assert flips > 100
+
+
+def test_retreat_releases_at_once_and_the_force_ramps_after_hold_and_retreat():
+    s = ObjectGainScheduler(dt=DT, force_ramp_s=0.1)
+    s.set_subject((1.0, 1.0, 0.0), np.eye(3))
+    acts = ["idle"] * 50 + ["track"] * 300 + ["hold"] * 100 + ["retreat"] * 100 + ["track"] * 300
+    d = np.full(len(acts), 0.002)
+    Ls, sc, states = _run(s, d, actions=acts)
+    assert np.all(sc[:50] == 0.0)
+    assert sc[50] == 0.0 and sc[99] == pytest.approx(0.49) and sc[200] == 1.0  # ramp when tracking starts
+    assert states[460] == FREE  # retreat: released without waiting for the dwell
+    assert sc[550] == 0.0 and sc[600] == pytest.approx(0.5)  # ramp again when tracking resumes
+    assert np.max(np.diff(sc)) <= DT / 0.1 + 1e-12  # the scale never jumps up
+    assert np.max(np.abs(np.diff(Ls, axis=0))) <= DT / 0.020 + 1e-12
+
+
+def test_lambda_is_rotated_into_the_robot_frame():
+    c, s_ = np.cos(0.3), np.sin(0.3)
+    R = np.array([[c, 0, s_], [0, 1, 0], [-s_, 0, c]])
+    sch = ObjectGainScheduler(dt=DT)
+    sch.set_subject((0.0, 0.0, 0.0), R)
+    _run(sch, np.linspace(-0.001, 0.0003, 100))
+    assert sch.state == SURFACE
+    L, _ = sch.step(1.0, 0.0002, True, True, "track")
+    assert np.allclose(np.array(L), R @ np.diag([1.0, 1.0, 0.0]) @ R.T)
+
+
+def test_controller_takes_the_scheduled_lambda_and_scale():
+    ctrl = Controller()
+    sch = ObjectGainScheduler(dt=DT)
+    sch.set_subject((0.0, 0.0, 0.0), None)
+    L, s = sch.step(0.0, -0.01, True, False, "track")
+    ctrl.set_lambda_robot(L)
+    ctrl.force_scale = s
+    assert np.allclose(ctrl.lambda_robot, np.eye(3))
+    ctrl.compute(1.0, 0, 0, 0, 0, 0, 0, 0.225, 0.0, -0.17)
+    assert ctrl.F_pd == (0.0, 0.0, 0.0)  # scale 0 at the start of tracking
+    ctrl.set_lambda_robot(((0.5, 0, 0), (0, 0.5, 0), (0, 0, 0.0)))
+    ctrl.force_scale = 1.0
+    ctrl.compute(2.0, 0, 0, 0, 0, 0, 0, 0.225, 0.0, -0.16)
+    assert ctrl.F_pd[2] == pytest.approx(0.0) and ctrl.F_pd[0] != 0.0
+
+
+@pytest.mark.parametrize("kw", [{"ramp_s": 0.01}, {"engage_m": 0.00005}, {"dwell_s": float("nan")}, {"dt": 0.0}])
+def test_bad_settings_name_the_field(kw):
+    with pytest.raises(ConfigError) as e:
+        ObjectGainScheduler(**kw)
+    assert next(iter(kw)) in str(e.value)
