@@ -43,7 +43,8 @@ def focal_from_fov(width_px: int, hfov_deg: float = 60.0) -> float:
 
 @dataclass(frozen=True)
 class GeometricConfig:
-    skin: str = "real"              # "real" (histogram fitted on real skin) | "gaussian" (the paper's hue model)
+    skin: str = "adaptive"          # "adaptive" (hue seed + this image's hand colours, hand_mask.py) |
+    #                                 "gaussian" (the paper's hue model) | "real" (histogram fitted on real skin)
     candidates: str = "hand"        # "hand" (finger of the hand) | "centroid" (distance from the skin centroid)
     background: str = "hand_free"   # "hand_free" | "first_frames" (as shipped) | "none" (skin only)
     hfov_deg: float = 60.0          # field of view used for r = K/z when no focal length is given
@@ -51,6 +52,9 @@ class GeometricConfig:
     tip_circle_m: float = 0.0048    # as the stereo pipeline: test circle radius at the fingertip
     z_search_m: tuple[float, ...] = (0.25, 0.35, 0.5, 0.7)  # depths tried when the depth is unknown
     hand_window_frac: float = 2.5   # cap test near the hand's extreme point: window half-side in cap radii
+    tip_end_frac: float = 0.0       # tip end = cap centre moved this many cap radii out along the finger
+    #   (fitted on the fit split of the real photos: annotators mark the pad, about the cap centre;
+    #   1.0: PCK@10 0.005, 0.5: 0.13, 0.0: 0.44)
     learn_frames: int = 10
     tracking: bool = True
     segment: SegmentConfig = field(default_factory=SegmentConfig)
@@ -129,14 +133,19 @@ class GeometricDetector:
             return self._bg.status
         return "background" if self.seg.learned else "skin only"
 
-    def _mask(self, image, roi):
-        """Skin mask of the ROI: with the background model when one is learned, else the skin test alone."""
+    def _mask(self, image, roi, full: bool = False):
+        """Skin mask of the ROI: with the background model when one is learned, else the skin test
+        alone (over the full frame with the adaptive model: the hand's own colours)."""
         import cv2
 
         from vishap.vision.segment import binary_median
 
         if self.seg.learned and (self._bg is None or self._bg.usable):
             return self.seg.segment(image, roi)
+        if full and self.config.skin == "adaptive":
+            from vishap.vision.hand_mask import adaptive_hand_mask
+
+            return adaptive_hand_mask(image, self.skin)
         x0, y0, x1, y1 = roi
         mask = self.skin.mask_hsv(cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_BGR2HSV))
         k = self.config.segment.median
@@ -148,7 +157,7 @@ class GeometricDetector:
         h, w = image.shape[:2]
         full = roi is None
         roi = snap_roi((0, 0, w, h) if full else roi, cfg.segment.tile, (w, h))
-        mask = self._mask(image, roi)
+        mask = self._mask(image, roi, full)
         if cfg.candidates == "hand" and full:
             return self._hand_candidate(mask, roi, radii)
         if prior is not None:
@@ -159,7 +168,7 @@ class GeometricDetector:
         if not tips:
             return None
         tip = tips[0]
-        return tip, _tip_end(tip), tip.uv.copy()
+        return tip, _tip_end(tip, cfg.tip_end_frac), tip.uv.copy()
 
     def _hand_candidate(self, mask, roi, radii):
         region = hand_region(mask)
@@ -182,18 +191,18 @@ class GeometricDetector:
         if best is None:
             return None, extreme + origin, None
         best.uv = best.uv + origin
-        return best, _tip_end(best), best.uv.copy()
+        return best, _tip_end(best, cfg.tip_end_frac), best.uv.copy()
 
 
-def _tip_end(tip) -> np.ndarray:
-    """The cap's outermost point along the finger: the centre moved by the cap radius (the test
-    circle's when no cap was fitted) away from the finger."""
+def _tip_end(tip, frac: float = 1.0) -> np.ndarray:
+    """The fingertip's end: the cap centre moved ``frac`` cap radii (the test circle's when no cap
+    was fitted) out along the finger (1: the cap's outermost point)."""
     rad = tip.cap_radius_px if tip.cap_radius_px > 0 else tip.radius_px
-    return tip.uv - rad * np.asarray(tip.direction, dtype=np.float64)
+    return tip.uv - frac * rad * np.asarray(tip.direction, dtype=np.float64)
 
 
 def _load_skin(kind: str):
-    if kind == "gaussian":
+    if kind in ("gaussian", "adaptive"):
         from vishap.vision.skin_model import SkinModel
 
         return SkinModel.load()
@@ -203,7 +212,7 @@ def _load_skin(kind: str):
         return HistogramSkinModel.load()
     from vishap._core.errors import ConfigError
 
-    raise ConfigError(f"skin {kind!r}: expected 'real' or 'gaussian'", field="skin")
+    raise ConfigError(f"skin {kind!r}: expected 'adaptive', 'gaussian' or 'real'", field="skin")
 
 
 register_detector("paper", lambda **kw: GeometricDetector(PAPER, name="paper", **kw),

@@ -23,6 +23,7 @@ from vishap.vision.segment import SegmentConfig, Segmenter, snap_roi
 from vishap.vision.skin_model import SkinModel
 from vishap.vision.stereo import StereoConfig, StereoPoint, triangulate_rectified_tip, triangulate_tip
 from vishap.vision.track import TipTracker, TrackerConfig
+from vishap.vision.view import search_tips
 
 __all__ = ["PipelineConfig", "TipEstimate", "VisionPipeline"]
 
@@ -404,13 +405,8 @@ class VisionPipeline:
         if mode != "full" or self._z is not None:
             tips = detect_fingertips(mask, self.K / z, cfg.fingertip, prior_uv=prior, max_tips=n_max)
         else:  # first acquisition, depth unknown: candidates at each depth of the working range
-            tips = []
-            for zz in (z, *cfg.z_search_m):
-                for tip in detect_fingertips(mask, self.K / zz, cfg.fingertip, prior_uv=prior, max_tips=n_max):
-                    if all(np.hypot(*(tip.uv - o.uv)) > tip.radius_px for o in tips):
-                        tips.append(tip)
-            tips.sort(key=lambda tp: -tp.extremity_px)
-            tips = tips[:n_max]
+            tips = search_tips(mask, [self.K / zz for zz in (z, *cfg.z_search_m)], cfg.fingertip, prior_uv=prior,
+                               max_tips=n_max)
         if window is not None and tips:
             tips = self._keep_track_measurement(tips, image, seg, window, pred, z)
         if not tips and mode == "tracked" and cfg.full_search_on_miss:

@@ -1,0 +1,74 @@
+"""The hand's mask in a real photo: a hue seed refined by a colour model of this image's own hand.
+
+A fixed skin colour model cannot hold over real scenes: pale, brightly lit skin falls under any
+saturation gate that keeps brick, soil and wood out, and those backgrounds pass any gate that
+keeps the pale skin (measured in ``docs/vision.md``). What holds is the hand's own colour in this
+image. :func:`adaptive_hand_mask`
+
+1. finds the hand with the paper's hue test (strict gate): the largest skin region, preferring
+   one that enters the frame (:func:`vishap.vision.view.hand_region`);
+2. marks, on a ``scale``-times smaller image, that region's core as sure hand, the pixels of a
+   liberal hue test (low saturation gate) near it as probable hand, saturated colours far from
+   skin hue (grass, sky, blue cloth) as sure background and the rest as probable background;
+3. lets OpenCV's GrabCut fit colour mixtures to hand and background *of this image* and cut
+   between them (a few iterations), which takes in the pale tip and leaves out the skin-hued
+   background that touches the hand only where the colours differ;
+4. returns the result at full size (uint8 0/255).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+
+from vishap.vision.segment import binary_median
+from vishap.vision.skin_model import SkinModel
+from vishap.vision.view import hand_region
+
+__all__ = ["AdaptiveMaskConfig", "adaptive_hand_mask"]
+
+
+@dataclass(frozen=True)
+class AdaptiveMaskConfig:
+    scale: int = 4                  # GrabCut runs on the image shrunk by this factor
+    iterations: int = 3
+    liberal_min_saturation: int = 12  # saturation gate of the probable-hand hue test
+    liberal_sigma_factor: float = 1.2  # … and its hue interval, times the strict one's
+    near_px: int = 4                # probable hand: liberal skin within this many (small) pixels of the region
+    far_hue_steps: float = 25.0     # sure background: hue this far (OpenCV steps) from the skin mean …
+    far_min_saturation: int = 50    # … and at least this saturated
+
+
+def adaptive_hand_mask(image: np.ndarray, skin: SkinModel, config: AdaptiveMaskConfig = AdaptiveMaskConfig()
+                       ) -> np.ndarray:
+    """Hand mask of a BGR image (see the module docstring); all zero when no hand region is seen."""
+    c = config
+    h, w = image.shape[:2]
+    small = cv2.resize(image, (w // c.scale, h // c.scale), interpolation=cv2.INTER_AREA)
+    hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
+    strict = binary_median(skin.mask_hsv(hsv), 3)
+    region = hand_region(strict)
+    if region is None:
+        return np.zeros((h, w), np.uint8)
+    liberal_model = replace(skin, min_saturation=min(skin.min_saturation, c.liberal_min_saturation),
+                            max_sigma=skin.max_sigma * c.liberal_sigma_factor)
+    liberal = binary_median(liberal_model.mask_hsv(hsv), 3) > 0
+    gc = np.full(strict.shape, cv2.GC_PR_BGD, np.uint8)
+    hue = hsv[..., 0].astype(np.int16)
+    dh = np.abs((hue - int(round(skin.hue_mean)) + 90) % 180 - 90)
+    gc[(hsv[..., 1] > c.far_min_saturation) & (dh > c.far_hue_steps)] = cv2.GC_BGD
+    k = 2 * c.near_px + 1
+    near = cv2.dilate(region.label_mask, np.ones((k, k), np.uint8)) > 0
+    gc[liberal & near] = cv2.GC_PR_FGD
+    core = cv2.erode(region.label_mask, np.ones((5, 5), np.uint8)) > 0
+    if not core.any():
+        core = region.label_mask > 0
+    gc[core] = cv2.GC_FGD
+    bgd, fgd = np.zeros((1, 65)), np.zeros((1, 65))
+    try:
+        cv2.grabCut(small, gc, None, bgd, fgd, c.iterations, cv2.GC_INIT_WITH_MASK)
+    except cv2.error:  # one class empty (e.g. the whole image is hand): keep the seed
+        gc = np.where(liberal & near, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8)
+    fg = ((gc == cv2.GC_FGD) | (gc == cv2.GC_PR_FGD)).view(np.uint8) * 255
+    return cv2.threshold(cv2.resize(fg, (w, h), interpolation=cv2.INTER_LINEAR), 0, 255, cv2.THRESH_BINARY)[1]
