@@ -38,6 +38,9 @@ class AdaptiveMaskConfig:
     near_px: int = 4                # probable hand: liberal skin within this many (small) pixels of the region
     far_hue_steps: float = 25.0     # sure background: hue this far (OpenCV steps) from the skin mean …
     far_min_saturation: int = 50    # … and at least this saturated
+    seed: str = "strict"            # hand region found on the "strict" or the "liberal" hue test
+    entry_sides: str = "bottom,left,right"  # image borders the arm may come from (view.hand_region)
+    core_frac: float = 0.4          # sure hand: region pixels within this fraction of its reach from the entry
 
 
 def adaptive_hand_mask(image: np.ndarray, skin: SkinModel, config: AdaptiveMaskConfig = AdaptiveMaskConfig()
@@ -48,12 +51,16 @@ def adaptive_hand_mask(image: np.ndarray, skin: SkinModel, config: AdaptiveMaskC
     small = cv2.resize(image, (w // c.scale, h // c.scale), interpolation=cv2.INTER_AREA)
     hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
     strict = binary_median(skin.mask_hsv(hsv), 3)
-    region = hand_region(strict)
-    if region is None:
-        return np.zeros((h, w), np.uint8)
     liberal_model = replace(skin, min_saturation=min(skin.min_saturation, c.liberal_min_saturation),
                             max_sigma=skin.max_sigma * c.liberal_sigma_factor)
-    liberal = binary_median(liberal_model.mask_hsv(hsv), 3) > 0
+    liberal = binary_median(liberal_model.mask_hsv(hsv), 3)
+    region = hand_region(liberal if c.seed == "liberal" else strict, entry_sides=c.entry_sides)
+    if c.seed == "strict" and (region is None or not _enters(region, strict.shape, c.entry_sides)):
+        # pale skin in bright light can fall apart under the strict gate: find the hand on the liberal test
+        region = hand_region(liberal, entry_sides=c.entry_sides) or region
+    if region is None:
+        return np.zeros((h, w), np.uint8)
+    liberal = liberal > 0
     gc = np.full(strict.shape, cv2.GC_PR_BGD, np.uint8)
     hue = hsv[..., 0].astype(np.int16)
     dh = np.abs((hue - int(round(skin.hue_mean)) + 90) % 180 - 90)
@@ -61,7 +68,14 @@ def adaptive_hand_mask(image: np.ndarray, skin: SkinModel, config: AdaptiveMaskC
     k = 2 * c.near_px + 1
     near = cv2.dilate(region.label_mask, np.ones((k, k), np.uint8)) > 0
     gc[liberal & near] = cv2.GC_PR_FGD
-    core = cv2.erode(region.label_mask, np.ones((5, 5), np.uint8)) > 0
+    core = (cv2.erode(region.label_mask, np.ones((5, 5), np.uint8)) > 0) & (strict > 0)
+    if c.core_frac < 1.0:
+        # sure hand only near where it enters: a skin-hued surface the hand touches (soil, a
+        # wall) belongs to the region but is left for the colour models to decide
+        ys, xs = np.nonzero(region.label_mask)
+        dist = np.hypot(xs - region.entry_uv[0], ys - region.entry_uv[1])
+        yy, xx = np.mgrid[0:core.shape[0], 0:core.shape[1]]
+        core &= np.hypot(xx - region.entry_uv[0], yy - region.entry_uv[1]) <= c.core_frac * dist.max()
     if not core.any():
         core = region.label_mask > 0
     gc[core] = cv2.GC_FGD
@@ -72,3 +86,11 @@ def adaptive_hand_mask(image: np.ndarray, skin: SkinModel, config: AdaptiveMaskC
         gc = np.where(liberal & near, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8)
     fg = ((gc == cv2.GC_FGD) | (gc == cv2.GC_PR_FGD)).view(np.uint8) * 255
     return cv2.threshold(cv2.resize(fg, (w, h), interpolation=cv2.INTER_LINEAR), 0, 255, cv2.THRESH_BINARY)[1]
+
+
+def _enters(region, shape, sides: str) -> bool:
+    """Does the region touch one of the image borders ``sides`` ("any": all four)?"""
+    h, w = shape
+    ys, xs = np.nonzero(region.label_mask)
+    touch = {"left": xs.min() <= 1, "top": ys.min() <= 1, "right": xs.max() >= w - 2, "bottom": ys.max() >= h - 2}
+    return any(touch.values()) if sides == "any" else any(touch[s.strip()] for s in sides.split(",") if s.strip())

@@ -53,9 +53,13 @@ class HandRegion:
     touches_border: bool
 
 
-def hand_region(mask: np.ndarray, *, min_area_frac: float = 0.002) -> HandRegion | None:
+def hand_region(mask: np.ndarray, *, min_area_frac: float = 0.002,
+                entry_sides: str = "bottom,left,right") -> HandRegion | None:
     """The hand among the skin regions of a mask: the largest region, preferring one that enters the
-    frame (a hand in front of a camera comes in from an image border, a wall blob or a face need not).
+    frame from one of ``entry_sides`` (a hand in front of a camera comes in with its arm from an
+    image border — the user's side: bottom, left or right for a camera facing the user's
+    workspace, a head-worn camera or a phone held in the other hand —, a wall blob or a face need
+    not; "any" accepts the top too).
 
     The entry point is the mean of the region's border pixels; without border contact it is the end
     of the principal axis nearer the region's bulk (the wrist side of a hand is its heavy end)."""
@@ -70,7 +74,11 @@ def hand_region(mask: np.ndarray, *, min_area_frac: float = 0.002) -> HandRegion
         return None
     x0, y0 = stats[ok, cv2.CC_STAT_LEFT], stats[ok, cv2.CC_STAT_TOP]
     x1, y1 = x0 + stats[ok, cv2.CC_STAT_WIDTH], y0 + stats[ok, cv2.CC_STAT_HEIGHT]
-    border = (x0 <= 1) | (y0 <= 1) | (x1 >= w - 1) | (y1 >= h - 1)
+    sides = {"left": x0 <= 1, "top": y0 <= 1, "right": x1 >= w - 1, "bottom": y1 >= h - 1}
+    wanted = sides if entry_sides == "any" else [sd.strip() for sd in entry_sides.split(",") if sd.strip()]
+    border = np.zeros(ok.size, bool)
+    for sd in wanted:
+        border |= sides[sd]
     # a region touching the border counts double: a hand enters the frame
     k = ok[int(np.argmax(stats[ok, cv2.CC_STAT_AREA] * np.where(border, 2.0, 1.0)))]
     region = (lab == k)
