@@ -26,7 +26,7 @@ from vishap.vision.segment import binary_median
 from vishap.vision.skin_model import SkinModel
 from vishap.vision.view import hand_region
 
-__all__ = ["AdaptiveMaskConfig", "adaptive_hand_mask"]
+__all__ = ["AdaptiveMaskConfig", "adaptive_hand_mask", "WINDOW"]
 
 
 @dataclass(frozen=True)
@@ -39,8 +39,12 @@ class AdaptiveMaskConfig:
     far_hue_steps: float = 25.0     # sure background: hue this far (OpenCV steps) from the skin mean …
     far_min_saturation: int = 50    # … and at least this saturated
     seed: str = "strict"            # hand region found on the "strict" or the "liberal" hue test
-    entry_sides: str = "bottom,left,right"  # image borders the arm may come from (view.hand_region)
+    entry_sides: str = "any"        # image borders the arm may come from (view.hand_region)
     core_frac: float = 0.4          # sure hand: region pixels within this fraction of its reach from the entry
+
+
+#: the setting for a tracking window around the predicted tip (small: full resolution, any side)
+WINDOW = AdaptiveMaskConfig(scale=1, entry_sides="any", core_frac=1.0, near_px=2)
 
 
 def adaptive_hand_mask(image: np.ndarray, skin: SkinModel, config: AdaptiveMaskConfig = AdaptiveMaskConfig()

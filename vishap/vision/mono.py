@@ -142,11 +142,14 @@ class GeometricDetector:
 
         if self.seg.learned and (self._bg is None or self._bg.usable):
             return self.seg.segment(image, roi)
-        if full and self.config.skin == "adaptive":
-            from vishap.vision.hand_mask import adaptive_hand_mask
-
-            return adaptive_hand_mask(image, self.skin)
         x0, y0, x1, y1 = roi
+        if self.config.skin == "adaptive":
+            from vishap.vision.hand_mask import WINDOW, adaptive_hand_mask
+
+            if full:
+                return adaptive_hand_mask(image, self.skin)
+            # a tracking window: the finger enters it from any side
+            return adaptive_hand_mask(np.ascontiguousarray(image[y0:y1, x0:x1]), self.skin, WINDOW)
         mask = self.skin.mask_hsv(cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_BGR2HSV))
         k = self.config.segment.median
         return binary_median(mask, k) if k > 1 else mask
@@ -177,16 +180,21 @@ class GeometricDetector:
         extreme = hand_tip(region)
         cfg = self.config
         m = region.label_mask
-        best = None
-        for r in sorted(radii, reverse=True):
+        caps = []
+        for r in radii:
             half = int(np.ceil(cfg.hand_window_frac * 2 * r * (1 + cfg.fingertip.delta_r_frac)))
             x0, y0 = max(0, int(extreme[0]) - half), max(0, int(extreme[1]) - half)
             x1, y1 = min(m.shape[1], int(extreme[0]) + half + 1), min(m.shape[0], int(extreme[1]) + half + 1)
             tips = search_tips(np.ascontiguousarray(m[y0:y1, x0:x1]), [r], cfg.fingertip, origin=(x0, y0),
                                prior_uv=extreme, max_tips=1)
             if tips and tips[0].cap_radius_px > 0:
-                best = tips[0]
-                break
+                caps.append(tips[0])
+        # the largest cap whose circle reaches the extreme point (a smaller test circle also fits
+        # deeper inside a wide fingertip); else the cap nearest it (a knuckle passes at a larger scale)
+        gap = [float(np.hypot(*(tp.uv - extreme))) - tp.cap_radius_px for tp in caps]
+        touching = [tp for tp, g in zip(caps, gap) if g <= 0.35 * tp.cap_radius_px + 2.0]
+        best = max(touching, key=lambda tp: tp.cap_radius_px) if touching else \
+            (caps[int(np.argmin(gap))] if caps else None)
         origin = np.asarray(roi[:2], dtype=np.float64)
         if best is None:
             return None, extreme + origin, None

@@ -54,7 +54,7 @@ class HandRegion:
 
 
 def hand_region(mask: np.ndarray, *, min_area_frac: float = 0.002,
-                entry_sides: str = "bottom,left,right") -> HandRegion | None:
+                entry_sides: str = "any") -> HandRegion | None:
     """The hand among the skin regions of a mask: the largest region, preferring one that enters the
     frame from one of ``entry_sides`` (a hand in front of a camera comes in with its arm from an
     image border — the user's side: bottom, left or right for a camera facing the user's
@@ -62,7 +62,7 @@ def hand_region(mask: np.ndarray, *, min_area_frac: float = 0.002,
     not; "any" accepts the top too).
 
     The entry point is the mean of the region's border pixels; without border contact it is the end
-    of the principal axis nearer the region's bulk (the wrist side of a hand is its heavy end)."""
+    of the principal axis nearer an image border."""
     h, w = mask.shape
     n, lab, stats, cents = cv2.connectedComponentsWithStats((mask > 0).view(np.uint8), connectivity=8)
     if n <= 1:
@@ -94,9 +94,11 @@ def hand_region(mask: np.ndarray, *, min_area_frac: float = 0.002,
     if touches:
         entry = pts[edge].mean(axis=0)
     else:
+        # the arm is cut off outside the view or by the frame's edge: the end of the principal
+        # axis nearer an image border
         s = q @ axis
-        # the heavy end: the side of the centre holding the wider half (third moment's sign)
-        entry = c - axis * np.sign(np.mean(s ** 3) or 1.0) * np.abs(s).max()
+        ends = [c + axis * s.max(), c + axis * s.min()]
+        entry = min(ends, key=lambda e: min(e[0], e[1], w - 1 - e[0], h - 1 - e[1]))
     d = c - entry
     if d @ axis < 0:
         axis = -axis
