@@ -38,6 +38,8 @@ class AdaptiveMaskConfig:
     near_px: int = 4                # probable hand: liberal skin within this many (small) pixels of the region
     far_hue_steps: float = 25.0     # sure background: hue this far (OpenCV steps) from the skin mean …
     far_min_saturation: int = 50    # … and at least this saturated
+    within_hue: bool = True         # keep only pixels of the liberal hue test (or pale and bright)
+    dark_value: int = 0             # sure background: value (brightness) below this
     seed: str = "strict"            # hand region found on the "strict" or the "liberal" hue test
     entry_sides: str = "any"        # image borders the arm may come from (view.hand_region)
     core_frac: float = 0.4          # sure hand: region pixels within this fraction of its reach from the entry
@@ -69,6 +71,7 @@ def adaptive_hand_mask(image: np.ndarray, skin: SkinModel, config: AdaptiveMaskC
     hue = hsv[..., 0].astype(np.int16)
     dh = np.abs((hue - int(round(skin.hue_mean)) + 90) % 180 - 90)
     gc[(hsv[..., 1] > c.far_min_saturation) & (dh > c.far_hue_steps)] = cv2.GC_BGD
+    gc[hsv[..., 2] < c.dark_value] = cv2.GC_BGD  # black furniture, deep shadow: never the hand's skin
     k = 2 * c.near_px + 1
     near = cv2.dilate(region.label_mask, np.ones((k, k), np.uint8)) > 0
     gc[liberal & near] = cv2.GC_PR_FGD
@@ -89,6 +92,8 @@ def adaptive_hand_mask(image: np.ndarray, skin: SkinModel, config: AdaptiveMaskC
     except cv2.error:  # one class empty (e.g. the whole image is hand): keep the seed
         gc = np.where(liberal & near, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8)
     fg = ((gc == cv2.GC_FGD) | (gc == cv2.GC_PR_FGD)).view(np.uint8) * 255
+    if c.within_hue:  # the cut may follow shading into dark or grey surroundings: keep skin hues only
+        fg &= ((liberal | (hsv[..., 1] < c.liberal_min_saturation) & (hsv[..., 2] > 150)) * 255).astype(np.uint8)
     return cv2.threshold(cv2.resize(fg, (w, h), interpolation=cv2.INTER_LINEAR), 0, 255, cv2.THRESH_BINARY)[1]
 
 

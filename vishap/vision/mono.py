@@ -57,6 +57,9 @@ class GeometricConfig:
     #   1.0: PCK@10 0.005, 0.5: 0.13, 0.0: 0.44)
     learn_frames: int = 10
     tracking: bool = True
+    recheck_frames: int = 15        # while tracking, search the full frame every this many frames …
+    recheck_young_frames: int = 3   # … every this many while the track is younger than recheck_frames
+    recheck_jump_px: float = 12.0   # a recheck this far from the track restarts it there
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     fingertip: FingertipConfig = field(default_factory=FingertipConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
@@ -85,6 +88,8 @@ class GeometricDetector:
 
             self._bg = HandFreeBackground(self.seg, learn_frames=self.config.learn_frames)
         self._frames: list = []
+        self._since_full = 0
+        self._track_age = 0
         self._z: float | None = None
         self._f: float | None = self.config.focal_px
 
@@ -107,10 +112,15 @@ class GeometricDetector:
         if pred is not None:
             roi = self.tracker.window((w, h), extra_px=2 * max(radii) * (1 + cfg.fingertip.delta_r_frac))
         mode = "tracked" if roi is not None else "full"
+        period = cfg.recheck_young_frames if self._track_age < cfg.recheck_frames else cfg.recheck_frames
+        if mode == "tracked" and period and self._since_full >= period:
+            roi, mode = None, "recheck"  # as the stereo pipeline: escape a lock on a knuckle taken at the entry
         det = self._search(image, roi, radii, pred if mode == "tracked" else None)
         if det is None and mode == "tracked":
             mode = "full"
             det = self._search(image, None, radii, None)
+        self._since_full = self._since_full + 1 if mode == "tracked" else 0
+        self._track_age = self._track_age + 1 if det is not None else 0
         if self._bg is not None:
             self._bg.observe(image, t, hand_uv=None if det is None else det[1])
         if self.config.background == "first_frames" and not self.seg.learned:
@@ -123,7 +133,10 @@ class GeometricDetector:
             self.tracker.update(t, None)
             return MonoDetection(t, False, mode=mode, reason=f"no fingertip ({status})", timings=timings)
         tip, end, cap = det
-        self.tracker.update(t, end)
+        if mode == "recheck" and self.tracker.tracking and np.hypot(*(end - self.tracker.kf.position)) > cfg.recheck_jump_px:
+            self.tracker.restart(t, end)
+        else:
+            self.tracker.update(t, end)
         return MonoDetection(t, True, tip_end_uv=end, cap_uv=cap, radius_px=float(tip.cap_radius_px if tip else 0.0),
                              direction=None if tip is None else tip.direction, confidence=self.tracker.confidence,
                              mode=f"{mode}/{status}", timings=timings)
