@@ -107,7 +107,6 @@ class GeometricDetector:
         K = self._f * cfg.tip_circle_m
         radii = [K / self._z] if self._z else [K / z for z in cfg.z_search_m]
         pred = self.tracker.predict(t) if cfg.tracking else None
-        status = self._background_status(image)
         roi = None
         if pred is not None:
             roi = self.tracker.window((w, h), extra_px=2 * max(radii) * (1 + cfg.fingertip.delta_r_frac))
@@ -123,6 +122,7 @@ class GeometricDetector:
         self._track_age = self._track_age + 1 if det is not None else 0
         if self._bg is not None:
             self._bg.observe(image, t, hand_uv=None if det is None else det[1])
+        status = self._background_status(image)  # after this frame was seen: "hand in view" from the first one
         if self.config.background == "first_frames" and not self.seg.learned:
             self._frames.append(image)
             if len(self._frames) >= cfg.learn_frames:

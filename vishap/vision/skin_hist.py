@@ -57,6 +57,12 @@ class HistogramSkinModel:
         if not (0.0 < self.threshold < 1.0):
             raise ConfigError(f"threshold must be in (0, 1), got {self.threshold}", field="threshold")
         self._level = int(np.floor(self.threshold * 255.0))
+        bh, bs, bv = self.prob.shape
+        # the bins of cv2.calcHist with uniform ranges: floor(x · bins / range)
+        self._lut_h = (np.minimum(np.arange(256) * bh // 180, bh - 1) * bs * bv).astype(np.int32)
+        self._lut_s = (np.arange(256) * bs // 256 * bv).astype(np.int32)
+        self._lut_v = (np.arange(256) * bv // 256).astype(np.int32)
+        self._flat = np.clip(np.rint(self.prob), 0, 255).astype(np.uint8).ravel()
 
     @property
     def bins(self) -> tuple[int, int, int]:
@@ -64,9 +70,10 @@ class HistogramSkinModel:
 
     # ------------------------------------------------------------------ evaluation
     def probability_hsv(self, hsv: np.ndarray) -> np.ndarray:
-        """``P(skin)`` per pixel as uint8 0…255."""
-        hsv = np.ascontiguousarray(hsv)
-        return cv2.calcBackProject([hsv], [0, 1, 2], self.prob, _RANGES, 1.0)
+        """``P(skin)`` per pixel as uint8 0…255 (a table look-up; ``cv2.calcBackProject`` would read a
+        3-D NumPy table as a 2-D many-channel image)."""
+        idx = self._lut_h[hsv[..., 0]] + self._lut_s[hsv[..., 1]] + self._lut_v[hsv[..., 2]]
+        return self._flat[idx]
 
     def mask_hsv(self, hsv: np.ndarray) -> np.ndarray:
         """Skin mask (uint8 0/255) of an HSV image (OpenCV 8-bit)."""
