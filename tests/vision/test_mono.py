@@ -111,7 +111,7 @@ def test_bench_vision_real_records_real_and_synthetic(tmp_path, rng):
     for k, uv in enumerate([(300, 150), (250, 170), (350, 140), (320, 160)], start=1):
         name = f"IMG_{k:04d}.png"
         cv2.imwrite(str(real / "images" / name), hand_image(uv, rng))
-        rows.append(f"{name},{uv[0]},{uv[1]},,,0,0,1,1")
+        rows.append(f"{name},{uv[0]},{uv[1]},,,{uv[0] - 80},{uv[1] - 20},{uv[0] + 60},479")
     (real / "labels.csv").write_text("\n".join(rows) + "\n")
     write_sequence(tmp_path / "toy", seed=3, frames=16, learn=4)
     out = tmp_path / "out"
@@ -124,3 +124,7 @@ def test_bench_vision_real_records_real_and_synthetic(tmp_path, rng):
     assert geo["synthetic"]["frames"] == 12 and geo["synthetic"]["hidden_frames"] == 4
     assert "paper (as shipped)" in rec["variants"] and "spearman_rho" in rec["synthetic_predicts_real"]
     assert (out / "vision_real_speed_accuracy.png").is_file()
+    # the shipped histogram is reproducible by the command (here on the first two photos)
+    assert main(["skin", "fit-real", str(real / "images"), "--labels", str(real / "labels.csv"), "--first", "2",
+                 "--out", str(tmp_path / "s.npz")]) == 0
+    assert "2 photos" in HistogramSkinModel.load(tmp_path / "s.npz").source

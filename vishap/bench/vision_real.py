@@ -161,6 +161,9 @@ def _prediction(variants: dict) -> dict:
     from scipy.stats import spearmanr
 
     s, r = np.array(pairs).T
+    if np.ptp(s) == 0 or np.ptp(r) == 0:
+        return {"variants": len(pairs), "spearman_rho": None, "max_abs_gap_pck_30": float(np.max(np.abs(s - r))),
+                "note": "all variants score the same on one of the two: no ranking to compare"}
     rho = spearmanr(s, r).statistic
     return {"variants": len(pairs), "spearman_rho": None if not np.isfinite(rho) else float(rho),
             "max_abs_gap_pck_30": float(np.max(np.abs(s - r)))}

@@ -221,7 +221,7 @@ def fit_skin_from_annotations(folder, labels, frames=None, **kw) -> HistogramSki
         names.append(row["frame"])
     if not imgs:
         raise ConfigError("no annotated photos to fit on", file=labels)
-    src = kw.pop("source", f"weak labels (tip/thumb strokes, outside the hand box) of {len(imgs)} photos "
+    src = kw.pop("source", f"weak labels (strokes from the index tip, outside the hand box) of {len(imgs)} photos "
                            f"({names[0]} … {names[-1]}) of {Path(folder).name}")
     return HistogramSkinModel.fit(imgs, ss, os_, source=src, **kw)
 
