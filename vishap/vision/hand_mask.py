@@ -31,8 +31,8 @@ __all__ = ["AdaptiveMaskConfig", "adaptive_hand_mask", "WINDOW"]
 
 @dataclass(frozen=True)
 class AdaptiveMaskConfig:
-    scale: int = 4                  # GrabCut runs on the image shrunk by this factor
-    iterations: int = 3
+    scale: int = 6                  # GrabCut runs on the image shrunk by this factor
+    iterations: int = 2
     liberal_min_saturation: int = 12  # saturation gate of the probable-hand hue test
     liberal_sigma_factor: float = 1.2  # … and its hue interval, times the strict one's
     near_px: int = 4                # probable hand: liberal skin within this many (small) pixels of the region
@@ -92,9 +92,19 @@ def adaptive_hand_mask(image: np.ndarray, skin: SkinModel, config: AdaptiveMaskC
     except cv2.error:  # one class empty (e.g. the whole image is hand): keep the seed
         gc = np.where(liberal & near, cv2.GC_PR_FGD, cv2.GC_BGD).astype(np.uint8)
     fg = ((gc == cv2.GC_FGD) | (gc == cv2.GC_PR_FGD)).view(np.uint8) * 255
-    if c.within_hue:  # the cut may follow shading into dark or grey surroundings: keep skin hues only
-        fg &= ((liberal | (hsv[..., 1] < c.liberal_min_saturation) & (hsv[..., 2] > 150)) * 255).astype(np.uint8)
-    return cv2.threshold(cv2.resize(fg, (w, h), interpolation=cv2.INTER_LINEAR), 0, 255, cv2.THRESH_BINARY)[1]
+    if not c.within_hue:
+        return cv2.threshold(cv2.resize(fg, (w, h), interpolation=cv2.INTER_LINEAR), 0, 255, cv2.THRESH_BINARY)[1]
+    # the cut may follow shading into dark or grey surroundings: keep skin hues (or pale, bright
+    # pixels) only, tested at full resolution so that the edges — the cap the tip is fitted to —
+    # are the image's, not the small cut's
+    fg = cv2.dilate(cv2.resize(fg, (w, h), interpolation=cv2.INTER_NEAREST), np.ones((c.scale + 1, c.scale + 1), np.uint8))
+    x, y, bw, bh = cv2.boundingRect(fg)
+    hsv_full = cv2.cvtColor(image[y:y + bh, x:x + bw], cv2.COLOR_BGR2HSV)
+    keep = cv2.bitwise_or(liberal_model.mask_hsv(hsv_full),
+                          cv2.inRange(hsv_full, (0, 0, 151), (180, c.liberal_min_saturation - 1, 255)))
+    out = np.zeros((h, w), np.uint8)
+    out[y:y + bh, x:x + bw] = cv2.bitwise_and(fg[y:y + bh, x:x + bw], binary_median(keep, 3))
+    return out
 
 
 def _enters(region, shape, sides: str) -> bool:
