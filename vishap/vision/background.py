@@ -7,8 +7,9 @@ passes nowhere. :class:`HandFreeBackground` wraps a :class:`~vishap.vision.segme
 * learns only from frames in which the detector found no hand (``observe(..., hand_uv=None)``),
   ``learn_frames`` of them; until then the detector runs on the skin test alone and ``status``
   says why ("hand in view: background not learned from it");
-* keeps updating the tiles the hand is not over (a running average, ``update_rate`` per frame,
-  tiles farther than ``hand_clear_px`` from the hand);
+* keeps updating the pixels the hand is not over (a running average, ``update_rate`` per frame,
+  applied every ``refresh_every`` frames; pixels farther than ``hand_clear_px`` from the hand and
+  off its skin);
 * notices a moving camera — most of the image outside the hand differs from the learned
   background (a grey thumbnail, ``moving_frac`` of its pixels off by more than
   ``moving_level``) — and falls back to the skin test alone (``usable`` False, ``status``
@@ -99,7 +100,12 @@ class HandFreeBackground:
         return moved
 
     def _update(self, image: np.ndarray, hand_uv) -> None:
-        mask = np.full(image.shape[:2], self.update_rate, np.float32)
+        self._n += 1
+        if self._n % self.refresh_every:
+            return  # one blend every refresh_every frames, at refresh_every times the rate: a full-frame
+            #         float blend per frame would cost more than the tracked search itself
+        rate = min(1.0, self.update_rate * self.refresh_every)
+        mask = np.full(image.shape[:2], rate, np.float32)
         if hand_uv is not None:
             cv2.circle(mask, (int(hand_uv[0]), int(hand_uv[1])), int(self.hand_clear_px), 0.0, -1)
         # the hand's body lies beyond its tip too: clear also the skin pixels of the frame
@@ -107,9 +113,7 @@ class HandFreeBackground:
         mask[cv2.dilate(skin, np.ones((15, 15), np.uint8)) > 0] = 0.0
         m3 = mask[..., None]
         self._mean += m3 * (image.astype(np.float32) - self._mean)
-        self._n += 1
-        if self._n % self.refresh_every == 0:
-            mean = cv2.convertScaleAbs(self._mean)
-            self.seg.mean_image = mean
-            self.seg.background = self.seg.histograms(mean)
-            self._thumb = cv2.resize(cv2.cvtColor(mean, cv2.COLOR_BGR2GRAY), (80, 60), interpolation=cv2.INTER_AREA)
+        mean = cv2.convertScaleAbs(self._mean)
+        self.seg.mean_image = mean
+        self.seg.background = self.seg.histograms(mean)
+        self._thumb = cv2.resize(cv2.cvtColor(mean, cv2.COLOR_BGR2GRAY), (80, 60), interpolation=cv2.INTER_AREA)

@@ -91,6 +91,7 @@ class GeometricDetector:
         self._frames: list = []
         self._since_full = 0
         self._track_age = 0
+        self._r_track: float | None = None  # test-circle radius of the last detection
         self._z: float | None = None
         self._f: float | None = self.config.focal_px
 
@@ -107,15 +108,17 @@ class GeometricDetector:
             self._f = focal_from_fov(w, cfg.hfov_deg)
         K = self._f * cfg.tip_circle_m
         radii = [K / self._z] if self._z else [K / z for z in cfg.z_search_m]
+        # a held track keeps the scale it was found at: one radius in its window
+        track_r = [self._r_track] if self._r_track and not self._z else radii
         pred = self.tracker.predict(t) if cfg.tracking else None
         roi = None
         if pred is not None:
-            roi = self.tracker.window((w, h), extra_px=2 * max(radii) * (1 + cfg.fingertip.delta_r_frac))
+            roi = self.tracker.window((w, h), extra_px=2 * max(track_r) * (1 + cfg.fingertip.delta_r_frac))
         mode = "tracked" if roi is not None else "full"
         period = cfg.recheck_young_frames if self._track_age < cfg.recheck_frames else cfg.recheck_frames
         if mode == "tracked" and period and self._since_full >= period:
             roi, mode = None, "recheck"  # as the stereo pipeline: escape a lock on a knuckle taken at the entry
-        det = self._search(image, roi, radii, pred if mode == "tracked" else None)
+        det = self._search(image, roi, track_r if mode == "tracked" else radii, pred if mode == "tracked" else None)
         if det is None and mode == "tracked":
             mode = "full"
             det = self._search(image, None, radii, None)
@@ -131,9 +134,11 @@ class GeometricDetector:
                 self._frames = []
         timings = {"total_ms": (time.perf_counter() - t0) * 1e3}
         if det is None:
+            self._r_track = None
             self.tracker.update(t, None)
             return MonoDetection(t, False, mode=mode, reason=f"no fingertip ({status})", timings=timings)
         tip, end, cap = det
+        self._r_track = None if tip is None else tip.radius_px
         if mode == "recheck" and self.tracker.tracking and np.hypot(*(end - self.tracker.kf.position)) > cfg.recheck_jump_px:
             self.tracker.restart(t, end)
         else:
@@ -178,7 +183,7 @@ class GeometricDetector:
         if cfg.candidates == "hand" and full:
             return self._hand_candidate(mask, roi, radii)
         if prior is not None:
-            tips = search_tips(mask, radii[:1] if self._z else radii, cfg.fingertip, origin=roi[:2], prior_uv=prior,
+            tips = search_tips(mask, radii, cfg.fingertip, origin=roi[:2], prior_uv=prior,
                                max_tips=1)
         else:
             tips = search_tips(mask, radii, cfg.fingertip, origin=roi[:2], max_tips=cfg.max_candidates)
