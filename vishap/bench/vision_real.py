@@ -165,8 +165,10 @@ def _prediction(variants: dict) -> dict:
         return {"variants": len(pairs), "spearman_rho": None, "max_abs_gap_pck_30": float(np.max(np.abs(s - r))),
                 "note": "all variants score the same on one of the two: no ranking to compare"}
     rho = spearmanr(s, r).statistic
+    # the spread says whether a ranking exists at all: on a render every variant may score alike
     return {"variants": len(pairs), "spearman_rho": None if not np.isfinite(rho) else float(rho),
-            "max_abs_gap_pck_30": float(np.max(np.abs(s - r)))}
+            "max_abs_gap_pck_30": float(np.max(np.abs(s - r))),
+            "spread_pck_30": {"synthetic": float(np.ptp(s)), "real": float(np.ptp(r))}}
 
 
 def _chart(record: dict, path: Path) -> Path:
