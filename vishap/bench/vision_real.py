@@ -198,7 +198,10 @@ def _chart(record: dict, path: Path) -> Path:
     axes[2].plot([0, 1], [0, 1], "k:", lw=0.8)
     axes[2].set_xlabel("synthetic PCK@30")
     axes[2].set_ylabel("real PCK@30")
-    axes[2].set_title(f"does synthetic predict real? Spearman rho = {pr.get('spearman_rho')}")
+    rho = pr.get("spearman_rho")
+    spread = pr.get("spread_pck_30", {})
+    axes[2].set_title(f"synthetic vs real: Spearman rho {'n/a' if rho is None else f'{rho:.2f}'}, "
+                      f"spread {spread.get('synthetic', float('nan')):.2f} vs {spread.get('real', float('nan')):.2f}", fontsize=9)
     axes[2].set_xlim(-0.02, 1.02)
     axes[2].set_ylim(-0.02, 1.02)
     axes[2].grid(alpha=0.3)
