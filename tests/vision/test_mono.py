@@ -128,3 +128,20 @@ def test_bench_vision_real_records_real_and_synthetic(tmp_path, rng):
     assert main(["skin", "fit-real", str(real / "images"), "--labels", str(real / "labels.csv"), "--first", "2",
                  "--out", str(tmp_path / "s.npz")]) == 0
     assert "2 photos" in HistogramSkinModel.load(tmp_path / "s.npz").source
+
+
+def test_stereo_pipeline_says_when_its_background_holds_the_hand(ideal_rig):
+    from vishap.vision.pipeline import VisionPipeline
+    from vishap.vision.toy import ToyScene
+
+    scene = ToyScene(ideal_rig, seed=2)
+    tip = np.array([0.0, 0.02, 0.55])
+    empty = [scene.frame(i / 30, tip, hand=False) for i in range(4)]
+    with_hand = [scene.frame(i / 30, tip, hand=True) for i in range(4)]
+    pipe = VisionPipeline(ideal_rig)
+    pipe.learn_background(empty)
+    assert pipe.background_warning == ""
+    pipe.learn_background(with_hand)
+    assert "hand in view" in pipe.background_warning
+    est = pipe.process(with_hand[0])  # the hand is the background now: nothing is found, and it says why
+    assert not est.found and "learn the background again" in est.reason
