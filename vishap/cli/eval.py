@@ -1,4 +1,5 @@
-"""``vishap eval vision DIR``: score the vision pipeline on a labelled synthetic sequence (one JSON object)."""
+"""``vishap eval vision DIR``: score the vision pipeline on a labelled synthetic sequence (one JSON object).
+``vishap eval fingertip SOURCE --labels CSV``: score a mono fingertip detector on real photos or video."""
 from __future__ import annotations
 
 import argparse
@@ -14,6 +15,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     v.add_argument("--max-frames", type=int, default=None)
     v.add_argument("--full-frame", action="store_true", help="no tracking window: full-frame search every frame")
     v.set_defaults(func=_vision)
+    f = es.add_parser("fingertip", help="2-D fingertip scores (PCK@10/20/30, detection, ms) of a mono detector")
+    f.add_argument("source", help="folder of images, video file, LEFT,RIGHT videos or 'vishap synth' folder (left view)")
+    f.add_argument("--labels", required=True, help="CSV with columns frame,u,v (u,v empty when the tip is hidden)")
+    f.add_argument("--detector", default="geometric", help="registered detector name (default: geometric)")
+    f.add_argument("--out", default=None, help="folder for per-frame results (frames.csv) and overlays of the worst frames")
+    f.add_argument("--sequence", action="store_true",
+                   help="treat a folder of images as consecutive frames (default: independent photos)")
+    f.set_defaults(func=_fingertip)
 
 
 def _vision(args: argparse.Namespace) -> int:
@@ -25,4 +34,16 @@ def _vision(args: argparse.Namespace) -> int:
     cfg = PipelineConfig(tracking=not args.full_frame)
     results = [evaluate_sequence(f, skin_model=skin, config=cfg, max_frames=args.max_frames) for f in args.folder]
     print(json.dumps(results[0] if len(results) == 1 else {"sequences": results}))
+    return 0
+
+
+def _fingertip(args: argparse.Namespace) -> int:
+    from vishap.vision.detector import make_detector
+    from vishap.vision.fingertip_eval import evaluate_fingertip, write_fingertip_results
+
+    det = make_detector(args.detector)
+    rec, rows = evaluate_fingertip(args.source, args.labels, det, sequence=True if args.sequence else None)
+    if args.out:
+        write_fingertip_results(args.out, rec, rows, args.source)
+    print(json.dumps(rec))
     return 0

@@ -1,4 +1,5 @@
-"""``vishap skin fit DIR... --out skin.yaml``: fit the Gaussian hue skin model (VisHap §2.1) from labelled sequences."""
+"""``vishap skin fit DIR... --out skin.yaml``: fit the Gaussian hue skin model (VisHap §2.1) from labelled sequences;
+``vishap skin fit-real IMAGES --labels CSV --out skin.npz``: fit the histogram skin model on annotated real photos."""
 from __future__ import annotations
 
 import argparse
@@ -15,6 +16,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--coverage", type=float, default=0.99,
                    help="without --max-sigma: threshold keeping this fraction of the training skin pixels")
     f.set_defaults(func=_fit)
+    r = ss.add_parser("fit-real", help="fit the histogram skin model on annotated real photos (weak labels)")
+    r.add_argument("images", help="folder of the photos")
+    r.add_argument("--labels", required=True, help="CSV with frame,u,v and box_x0,box_y0,box_x1,box_y1")
+    r.add_argument("--first", type=int, default=None, help="fit on the first N rows only (keep the rest held out)")
+    r.add_argument("--threshold", type=float, default=0.5, help="P(skin | colour) above this is skin")
+    r.add_argument("--out", required=True, help="model file to write (.npz)")
+    r.set_defaults(func=_fit_real)
     s = ss.add_parser("show", help="print a model (default: the shipped one)")
     s.add_argument("file", nargs="?", default=None)
     s.set_defaults(func=_show)
@@ -37,4 +45,15 @@ def _show(args: argparse.Namespace) -> int:
     from vishap.vision.skin_model import SkinModel
 
     print(json.dumps(asdict(SkinModel.load(args.file))))
+    return 0
+
+
+def _fit_real(args: argparse.Namespace) -> int:
+    from vishap.vision.skin_hist import fit_skin_from_annotations, read_annotations
+
+    rows = read_annotations(args.labels)
+    frames = {r["frame"] for r in (rows if args.first is None else rows[: args.first])}
+    m = fit_skin_from_annotations(args.images, args.labels, frames, threshold=args.threshold)
+    m.save(args.out)
+    print(json.dumps({"out": args.out, "bins": list(m.bins), "threshold": m.threshold, "source": m.source}))
     return 0

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
+import sys
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -49,7 +50,10 @@ def _run(args: argparse.Namespace) -> int:
     for f in itertools.islice(frames, args.max_frames):
         rows.append(track_record(pipe.process(f)))
     found = sum(r["found"] for r in rows)
+    if pipe.background_warning:
+        print(f"vishap track: warning: {pipe.background_warning}", file=sys.stderr)
     record = {"source": args.source, "frames": len(rows), "found": found,
+              "background_warning": pipe.background_warning,
               "capture": None if stats is None else stats.as_dict(), "tracks": rows}
     write_atomic(args.out, json.dumps(record))
     print(json.dumps({k: v for k, v in record.items() if k != "tracks"} | {"out": args.out}))

@@ -23,6 +23,7 @@ from vishap.vision.segment import SegmentConfig, Segmenter, snap_roi
 from vishap.vision.skin_model import SkinModel
 from vishap.vision.stereo import StereoConfig, StereoPoint, triangulate_rectified_tip, triangulate_tip
 from vishap.vision.track import TipTracker, TrackerConfig
+from vishap.vision.view import search_tips
 
 __all__ = ["PipelineConfig", "TipEstimate", "VisionPipeline"]
 
@@ -103,6 +104,7 @@ class VisionPipeline:
         self._window_tips: set = set()      # ids of this frame's candidates measured in the tracking window
         self._fix_run = 0                   # consecutive frames with a 3-D fix (the 3-D track's age)
         self._size = rig.image_size
+        self.background_warning = ""        # set when the learned background holds a hand (_hand_in_background)
 
     # ------------------------------------------------------------------ background
     @property
@@ -121,6 +123,32 @@ class VisionPipeline:
             raise VisionError("learn_background: no frames given")
         self.segmenters["left"].learn(lefts)
         self.segmenters["right"].learn(rights)
+        self.background_warning = self._hand_in_background()
+
+    def _hand_in_background(self) -> str:
+        """A warning when the learned background (left view) holds a hand: a skin region with a
+        fingertip cap at its extreme point. The model is kept as learned (the caller
+        decides: move the hand out of view and learn again); the warning is reported with every
+        frame that finds no fingertip, since that is what such a background causes."""
+        import cv2
+
+        from vishap.vision.segment import binary_median
+        from vishap.vision.view import hand_region, hand_tip
+
+        seg = self.segmenters["left"]
+        mask = binary_median(self.skin.mask_hsv(cv2.cvtColor(seg.mean_image, cv2.COLOR_BGR2HSV)), 5)
+        region = hand_region(mask)
+        if region is None:
+            return ""
+        end = hand_tip(region)
+        radii = [self.K / z for z in (self.config.z_default_m, *self.config.z_search_m)]
+        tips = [tp for tp in search_tips(region.label_mask, radii, self.config.fingertip, prior_uv=end, max_tips=1)
+                if tp.cap_radius_px > 0 and np.hypot(*(tp.uv - end)) <= 2 * tp.cap_radius_px + 2]
+        if not tips:
+            return ""
+        u, v = tips[0].uv
+        return (f"the background was learned from frames with a hand in view (fingertip near ({u:.0f}, {v:.0f}) "
+                f"in the left view): move the hand out of view and learn the background again")
 
     def reset_tracking(self) -> None:
         self.trackers = {s: TipTracker(self.config.tracker) for s in ("left", "right")}
@@ -186,7 +214,8 @@ class VisionPipeline:
             self._z = float(sp.p_cam[2])
             self._p3, self._t3 = np.asarray(sp.p_cam, dtype=np.float64), t
             return TipEstimate(t, True, sp.p_cam, sp.cov_cam, found["left"], found["right"], conf, timings, modes["left"])
-        return TipEstimate(t, False, None, None, found["left"], found["right"], conf, timings, modes["left"], sp.reason)
+        reason = sp.reason + (f"; {self.background_warning}" if self.background_warning else "")
+        return TipEstimate(t, False, None, None, found["left"], found["right"], conf, timings, modes["left"], reason)
 
     def _choose_pair(self, cands: dict, modes: dict, t: float):
         """Pick the left/right tips: the best-ranked stereo-consistent pair.
@@ -404,13 +433,8 @@ class VisionPipeline:
         if mode != "full" or self._z is not None:
             tips = detect_fingertips(mask, self.K / z, cfg.fingertip, prior_uv=prior, max_tips=n_max)
         else:  # first acquisition, depth unknown: candidates at each depth of the working range
-            tips = []
-            for zz in (z, *cfg.z_search_m):
-                for tip in detect_fingertips(mask, self.K / zz, cfg.fingertip, prior_uv=prior, max_tips=n_max):
-                    if all(np.hypot(*(tip.uv - o.uv)) > tip.radius_px for o in tips):
-                        tips.append(tip)
-            tips.sort(key=lambda tp: -tp.extremity_px)
-            tips = tips[:n_max]
+            tips = search_tips(mask, [self.K / zz for zz in (z, *cfg.z_search_m)], cfg.fingertip, prior_uv=prior,
+                               max_tips=n_max)
         if window is not None and tips:
             tips = self._keep_track_measurement(tips, image, seg, window, pred, z)
         if not tips and mode == "tracked" and cfg.full_search_on_miss:
