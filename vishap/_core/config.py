@@ -38,6 +38,7 @@ __all__ = [
     "Schema",
     "read_mapping",
     "read_yaml_text",
+    "ProjectLoader",
     "check_tree",
     "load_config",
     "validate",
@@ -68,13 +69,26 @@ class Schema(BaseModel):
 _FLOAT_12 = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
 
 
-class _Loader(yaml.SafeLoader):
+class ProjectLoader(yaml.SafeLoader):
     """SafeLoader with YAML 1.2 exponents (``1e5`` is a float), no implicit dates, no tags that
     build anything but plain data, and a nesting limit checked before the recursion it guards."""
 
     def __init__(self, stream):
         super().__init__(stream)
         self._depth = 0
+
+    def construct_mapping(self, node, deep=False):
+        # a key given twice is a mistake PyYAML would hide by keeping the last value
+        if isinstance(node, yaml.MappingNode):
+            seen = set()
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge" or not isinstance(key_node, yaml.ScalarNode):
+                    continue
+                if key_node.value in seen:
+                    raise yaml.constructor.ConstructorError(None, None, f"key {key_node.value!r} is given twice",
+                                                            key_node.start_mark)
+                seen.add(key_node.value)
+        return super().construct_mapping(node, deep=deep)
 
     def compose_node(self, parent, index):
         self._depth += 1
@@ -87,12 +101,12 @@ class _Loader(yaml.SafeLoader):
             self._depth -= 1
 
 
-_Loader.yaml_implicit_resolvers = {
+ProjectLoader.yaml_implicit_resolvers = {
     k: [(tag, rx) for tag, rx in v if tag != "tag:yaml.org,2002:timestamp"]
     for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()
 }
-_Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789."))
-_Loader.yaml_constructors = dict(yaml.SafeLoader.yaml_constructors)
+ProjectLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789."))
+ProjectLoader.yaml_constructors = dict(yaml.SafeLoader.yaml_constructors)
 
 
 def _refuse_tag(loader, node):
@@ -101,8 +115,8 @@ def _refuse_tag(loader, node):
 
 
 for _tag in ("timestamp", "binary", "set", "omap", "pairs"):
-    _Loader.yaml_constructors[f"tag:yaml.org,2002:{_tag}"] = _refuse_tag
-_Loader.yaml_constructors[None] = _refuse_tag  # any unknown tag
+    ProjectLoader.yaml_constructors[f"tag:yaml.org,2002:{_tag}"] = _refuse_tag
+ProjectLoader.yaml_constructors[None] = _refuse_tag  # any unknown tag
 
 
 def _one_line(exc: BaseException) -> str:
@@ -110,18 +124,27 @@ def _one_line(exc: BaseException) -> str:
     return text[:300] or type(exc).__name__
 
 
-def read_yaml_text(text: str, *, file: str | os.PathLike | None = None, loader: type | None = None) -> Any:
+def read_yaml_text(text: str, *, file: str | os.PathLike | None = None, loader: type | None = None,
+                   documents: bool = False) -> Any:
     """Parse YAML ``text`` with the project's loader (or a subclass of it) and check the result
-    with :func:`check_tree`; any problem is one :class:`ConfigError` naming ``file``."""
+    with :func:`check_tree`; any problem is one :class:`ConfigError` naming ``file``.
+
+    With ``documents``, every document of a multi-document stream is returned, as a list.
+    """
     try:
-        data = yaml.load(text, Loader=loader or _Loader)  # noqa: S506 - a SafeLoader subclass
+        if documents:
+            data = list(yaml.load_all(text, Loader=loader or ProjectLoader))  # noqa: S506 - a SafeLoader subclass
+        else:
+            data = yaml.load(text, Loader=loader or ProjectLoader)  # noqa: S506 - a SafeLoader subclass
     except VishapError:
         raise
     except RecursionError:
         raise ConfigError(f"not valid YAML (nesting deeper than {MAX_DEPTH} levels)", file=file) from None
     except Exception as exc:  # yaml errors, and whatever a constructor raises (ValueError, OverflowError…)
         raise ConfigError(f"not valid YAML ({_one_line(exc)})", file=file) from None
-    return check_tree(data, file=file)
+    for doc in data if documents else [data]:
+        check_tree(doc, file=file)
+    return data
 
 
 def check_tree(data: Any, *, file: str | os.PathLike | None = None) -> Any:
