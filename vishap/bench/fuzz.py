@@ -1,0 +1,582 @@
+"""``vishap bench fuzz``: hostile inputs for every loader and the device path; count what breaks.
+
+A case is a pure function of ``(seed, index)``: the loader or device-path entry it targets is
+``index mod len(TARGETS)`` and its mutation is drawn from ``numpy.random.default_rng([seed, index])``,
+so any case can be replayed alone (``vishap bench fuzz --replay INDEX``).
+
+Loader cases start from a valid file the project ships or writes (rig, world/synthesis scenes,
+skin model, tactile config, gains, camera-to-robot calibration, trajectories) and mutate it: a
+number replaced by NaN, infinity, 1e300, 10⁴⁰⁰, zero, a negative, text or a nested list; a line
+deleted, repeated or re-indented; the file truncated; junk bytes; YAML tags; deep nesting; alias
+bombs. The outcome is *accepted*, *refused* (a :class:`~vishap._core.errors.VishapError`) or a
+*crash* (any other exception). An accepted file that carried an injected NaN/inf, or whose loaded
+object holds one, counts in ``accepted_nonfinite``.
+
+Device-path cases drive ``saturate``, ``TargetGuard``, ``Controller.compute`` and ``ServoLoop.tick``
+with NaN/inf/overflowing/future-stamped/all-zero inputs and check what a device must never see:
+a non-finite or over-limit force, gravity compensation dropped, a future-stamped target tracked,
+an arm that moves on a NaN target from the first tick. Each violated property is a
+``device_failure``.
+
+Cases run in child processes (``--jobs``) that report one JSON line per case; a child killed by a
+signal (SIGSEGV, SIGABRT) is a *native crash* of the case it was running, which is written to
+``OUT/crashes/`` as a reproducer, and a new child carries on with the next case.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+HELP = "fuzz every loader and the device-path inputs; count crashes, native crashes, accepted NaN/inf"
+QUICK_ARGS = ["--cases", "3000"]
+
+__all__ = ["HELP", "QUICK_ARGS", "add_arguments", "run", "TARGETS", "LOADERS", "DEVICE", "make_case", "run_case"]
+
+_REPO = Path(__file__).resolve().parents[2]
+_NUMBER = re.compile(r"(?<![\w.])[-+]?(?:\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?)(?![\w.])")
+#: Replacement tokens for a number: (text, is it non-finite once parsed).
+_TOKENS: list[tuple[str, bool]] = [
+    (".nan", True), (".inf", True), ("-.inf", True), (".NaN", True), (".Inf", True), ("1e400", True),
+    ("-1e400", True), ("1" + "0" * 400, True), ("1e300", False), ("-1e300", False), ("1e-300", False),
+    ("0", False), ("0.0", False), ("-1", False), ("-0.5", False), ("2e9", False), ("9223372036854775808", False),
+    ('"x"', False), ("~", False), ("[]", False), ("{}", False), ("[1, 2]", False), ("true", False),
+    ("!!timestamp 2024-13-45", False), ("!!binary AAA", False), ("!!python/object:os.system x", False),
+    ("&a [*a]", False), ("[" * 200 + "]" * 200, False), ("0x1F", False), ("1_000", False), ("nan", True),
+]
+_JUNK = [b"\x00", b"\xff\xfe", b"\x07", b": : :", b"]]]", b"{{", b"- - -", b"\t", b"%YAML:1.0\n", b"---\n",
+         b"? [1]\n: 2\n", b"!!opencv-matrix", b"rows: 3\n", b"data: [", b"\r"]
+
+
+# ------------------------------------------------------------------------------------ loaders
+@dataclasses.dataclass(frozen=True)
+class Target:
+    name: str
+    kind: str  # "loader" | "device"
+    suffix: str = ".yaml"
+    seed_text: Callable[[], str] | None = None
+    load: Callable[[Path], object] | None = None
+    device: Callable[[np.random.Generator], tuple[str, str]] | None = None
+
+
+def _read(rel: str) -> Callable[[], str]:
+    return lambda: (_REPO / rel).read_text()
+
+
+def _rig_text() -> str:
+    from vishap._core.pose import rotvec_to_matrix
+    from vishap.vision.rig import StereoRig
+
+    K1 = np.array([[560.0, 0.0, 322.0], [0.0, 558.0, 241.5], [0.0, 0.0, 1.0]])
+    rig = StereoRig((640, 480), K1, np.array([-0.21, 0.08, 0.0012, -0.0007, -0.012]), K1.copy(), np.zeros(5),
+                    rotvec_to_matrix([0.004, -0.03, 0.002]), np.array([-0.0601, 0.0007, 0.0012]))
+    return rig.with_calibration_info(rms_px=0.3, board="9x6 chessboard 25 mm").to_filestorage_string()
+
+
+def _skin_text() -> str:
+    from vishap.vision.skin_model import default_skin_model_path
+
+    return default_skin_model_path().read_text()
+
+
+def _load_rig(p):
+    from vishap.vision.rig import StereoRig
+
+    return StereoRig.load(p)
+
+
+def _load_world_scene(p):
+    from vishap.world.scene import load_scene
+
+    return load_scene(p)
+
+
+def _load_synth_scene(p):
+    from vishap.sim.scene_objects import load_scene_spec
+
+    return load_scene_spec(p)
+
+
+def _load_skin(p):
+    from vishap.vision.skin_model import SkinModel
+
+    return SkinModel.load(p)
+
+
+def _load_tactile(p):
+    from vishap.tactile.config import load_tactile_config
+
+    return load_tactile_config(p)
+
+
+def _load_gains(p):
+    from vishap.robot.gains import load_gains
+
+    return load_gains(p)
+
+
+def _load_camera_robot(p):
+    from vishap.registration import camera_robot
+
+    return camera_robot.load(p)
+
+
+def _load_trajectory(p):
+    from vishap.sim.trajectory import load_trajectory
+
+    return load_trajectory(p)[0]
+
+
+def _load_modes(p):
+    from vishap.world.modes import load_modes
+
+    return load_modes(p)
+
+
+LOADERS = [
+    Target("rig", "loader", ".yaml", _rig_text, _load_rig),
+    Target("world_scene_wall", "loader", ".yaml", _read("datasets/synthetic/scenes/wall.yaml"), _load_world_scene),
+    Target("world_scene_button", "loader", ".yaml", _read("datasets/synthetic/scenes/button.yaml"), _load_world_scene),
+    Target("world_scene_fabric", "loader", ".yaml", _read("datasets/synthetic/scenes/fabric.yaml"), _load_world_scene),
+    Target("synth_scene", "loader", ".yaml", _read("datasets/synthetic/scenes/button.yaml"), _load_synth_scene),
+    Target("skin_model", "loader", ".yaml", _skin_text, _load_skin),
+    Target("tactile_config", "loader", ".yaml", _read("vishap/tactile/tactile.yaml"), _load_tactile),
+    Target("gains", "loader", ".yaml", _read("vishap/robot/gains.yaml"), _load_gains),
+    Target("camera_robot", "loader", ".yaml", _read("calib/camera_robot.yaml"), _load_camera_robot),
+    Target("trajectory", "loader", ".yaml", _read("datasets/synthetic/trajectories/wall.yaml"), _load_trajectory),
+    Target("modes", "loader", ".yaml", _read("vishap/world/modes.yaml"), _load_modes),
+]
+
+
+def _mutate(text: str, rng: np.random.Generator) -> tuple[bytes, bool]:
+    """One to three mutations of ``text``; returns the bytes and whether a non-finite number was injected."""
+    nonfinite = False
+    data = text
+    for _ in range(int(rng.integers(1, 4))):
+        op = int(rng.integers(0, 10))
+        lines = data.split("\n")
+        if op <= 3:  # replace a number (the most telling mutation, so the most frequent)
+            nums = list(_NUMBER.finditer(data))
+            if nums:
+                m = nums[int(rng.integers(len(nums)))]
+                tok, bad = _TOKENS[int(rng.integers(len(_TOKENS)))]
+                data = data[: m.start()] + tok + data[m.end():]
+                nonfinite |= bad
+        elif op == 4 and len(lines) > 1:
+            del lines[int(rng.integers(len(lines)))]
+            data = "\n".join(lines)
+        elif op == 5:
+            i = int(rng.integers(len(lines)))
+            lines.insert(i, lines[i])
+            data = "\n".join(lines)
+        elif op == 6:
+            i = int(rng.integers(len(lines)))
+            lines[i] = " " * int(rng.integers(0, 6)) + lines[i].lstrip()
+            data = "\n".join(lines)
+        elif op == 7:
+            data = data[: int(rng.integers(0, len(data) + 1))]
+        elif op == 8:
+            i = int(rng.integers(0, len(data) + 1))
+            data = data[:i] + _JUNK[int(rng.integers(len(_JUNK)))].decode("latin-1") + data[i:]
+        else:  # a value replaced by a deep or aliased structure
+            i = int(rng.integers(len(lines)))
+            if ":" in lines[i]:
+                key = lines[i].split(":")[0]
+                depth = int(rng.choice([10, 100, 3000]))
+                lines[i] = f"{key}: " + ("[" * depth + "]" * depth if rng.random() < 0.5 else "&r [*r]")
+                data = "\n".join(lines)
+    return data.encode("utf-8", "surrogateescape") if isinstance(data, str) else data, nonfinite
+
+
+def _has_nonfinite(obj, depth: int = 0, seen: set | None = None) -> bool:
+    """Whether a loaded object holds NaN or inf anywhere (floats, arrays, containers, dataclasses, models)."""
+    seen = set() if seen is None else seen
+    if depth > 8 or id(obj) in seen:
+        return False
+    if isinstance(obj, float):
+        return not math.isfinite(obj)
+    if isinstance(obj, np.ndarray):
+        return obj.dtype.kind in "fc" and not bool(np.all(np.isfinite(obj)))
+    if isinstance(obj, (np.floating,)):
+        return not bool(np.isfinite(obj))
+    if isinstance(obj, (str, bytes, int, bool)) or obj is None:
+        return False
+    seen.add(id(obj))
+    if isinstance(obj, dict):
+        return any(_has_nonfinite(v, depth + 1, seen) for v in obj.values())
+    if isinstance(obj, (list, tuple)):
+        return any(_has_nonfinite(v, depth + 1, seen) for v in obj)
+    d = getattr(obj, "__dict__", None)
+    if isinstance(d, dict):
+        return any(_has_nonfinite(v, depth + 1, seen) for k, v in d.items() if not k.startswith("__"))
+    return False
+
+
+# ------------------------------------------------------------------------------------ device path
+_HOSTILE = [math.nan, math.inf, -math.inf, 1e300, -1e300, 1e200, 1e154, -1e154, 0.0, 1e-300]
+
+
+def _value(rng: np.random.Generator, sane: float) -> float:
+    """Mostly a hostile value, sometimes a sane one near ``sane``."""
+    if rng.random() < 0.35:
+        return sane * (1.0 + 0.1 * rng.standard_normal())
+    return float(_HOSTILE[int(rng.integers(len(_HOSTILE)))]) * (1 if rng.random() < 0.5 else -1)
+
+
+def _dev_saturate(rng):
+    from vishap.world.force_laws import saturate
+
+    F = np.array([_value(rng, 3.0) for _ in range(3)])
+    limit = _value(rng, 8.5) if rng.random() < 0.5 else 8.5
+    F_in = F.copy()
+    try:
+        out = saturate(F, limit)
+    except (ValueError, ArithmeticError) as exc:
+        if math.isfinite(limit) and limit > 0:
+            return "crash", f"saturate raised {type(exc).__name__} for a valid limit {limit}"
+        return "refused", ""
+    if not np.all(np.isfinite(out)):
+        return "device_failure", f"saturate({F_in.tolist()}, {limit}) -> non-finite {out.tolist()}"
+    n = float(np.linalg.norm(out))
+    ok_limit = math.isfinite(limit) and limit > 0
+    if not ok_limit and n > 0:
+        return "device_failure", f"saturate passed force |F|={n:.3g} through an invalid limit {limit}"
+    if ok_limit and n > limit * (1 + 1e-9):
+        return "device_failure", f"saturate left |F|={n:.3g} above the limit {limit}"
+    if ok_limit and np.all(np.isfinite(F_in)) and np.linalg.norm(F_in / 1e200) * 1e200 > limit and n < 0.999 * limit:
+        return "device_failure", f"saturate sent an overflowing force {F_in.tolist()} to |F|={n:.3g}, not the limit"
+    return "ok", ""
+
+
+def _dev_guard(rng):
+    from vishap.runtime.safety import TargetGuard
+
+    cfg = dict(box_lo=[-0.1, -0.1, -0.1], box_hi=[0.1, 0.1, 0.1], retreat_point=[0.0, 0.0, 0.05],
+               stale_after_s=0.15, retreat_after_s=0.5, min_confidence=0.2)
+    hostile_cfg = rng.random() < 0.3
+    if hostile_cfg:
+        key = list(cfg)[int(rng.integers(len(cfg)))]
+        v = cfg[key]
+        cfg[key] = [_value(rng, x) for x in v] if isinstance(v, list) else _value(rng, v)
+    try:
+        guard = TargetGuard(**{k: (np.array(v) if isinstance(v, list) else v) for k, v in cfg.items()})
+    except (ValueError, TypeError):
+        return "refused", ""
+    if hostile_cfg:
+        bad = [k for k, v in cfg.items() if not np.all(np.isfinite(np.asarray(v, dtype=float)))]
+        if bad:
+            return "device_failure", f"TargetGuard accepted a non-finite {bad[0]}={cfg[bad[0]]}"
+    t = 1.0
+    for step in range(int(rng.integers(1, 6))):
+        t += 0.001
+        future = rng.random() < 0.3
+        made_at = t + float(rng.choice([0.01, 1.0, 1e6])) if future else _value(rng, t - 0.01)
+        X = [_value(rng, 0.02) for _ in range(3)]
+        conf = _value(rng, 0.9)
+        d = guard.decide(t, X, made_at, conf)
+        if not np.all(np.isfinite(d.X_d)) or np.any(d.X_d < guard.box_lo - 1e-12) or np.any(d.X_d > guard.box_hi + 1e-12):
+            return "device_failure", f"TargetGuard gave {d.X_d.tolist()} for X={X}, made_at={made_at}, confidence={conf}"
+        if future and d.action == "track":
+            return "device_failure", f"TargetGuard tracked a target stamped {made_at - t:.3g} s in the future"
+    return "ok", ""
+
+
+_CONTROLLER = {}
+
+
+def _controller():
+    if "c" not in _CONTROLLER:
+        from vishap.robot.controller import Controller
+        from vishap.robot.device import DeviceLimits
+
+        _CONTROLLER["c"] = Controller(limits=DeviceLimits.from_params())
+    return _CONTROLLER["c"]
+
+
+def _dev_controller(rng):
+    from vishap.robot.gravity import gravity_torque
+
+    c = _controller()
+    c.reset(0.0)
+    q = np.array([0.1, 0.3, -0.2]) + 0.2 * rng.standard_normal(3)
+    w = np.zeros(3)
+    if rng.random() < 0.2:
+        w = np.array([_value(rng, 0.1) for _ in range(3)])
+    target = [_value(rng, s) for s in (0.0, 0.0, 0.0)]
+    force = [_value(rng, 0.0) for _ in range(3)] if rng.random() < 0.6 else [0.0, 0.0, 0.0]
+    tau = None
+    for k in range(3):
+        tau = c.compute(0.001 * k + 1.0, *q, *w, *target, 0.0, 0.0, 0.0, *force)
+    tau = np.asarray(tau, dtype=float)
+    peak = c.limits.max_torque_nm if getattr(c, "limits", None) is not None else 8.5 * 0.4
+    if not np.all(np.isfinite(tau)):
+        return "device_failure", f"Controller.compute gave non-finite torque {tau.tolist()}"
+    if np.any(np.abs(tau) > peak * (1 + 1e-9)):
+        return "device_failure", f"Controller.compute gave |tau| {np.abs(tau).max():.3g} above {peak:.3g} N·m"
+    tg = gravity_torque(q)
+    if np.all(np.isfinite(w)) and np.all(tau == 0.0) and np.linalg.norm(tg) > 1e-6:
+        return "device_failure", (f"Controller.compute commanded zero torque, dropping gravity compensation "
+                                  f"(target {target}, force {force})")
+    return "ok", ""
+
+
+_SERVO = {}
+
+
+def _dev_servo(rng):
+    from vishap.robot.build import build_servo
+
+    if "s" not in _SERVO:
+        _SERVO["s"] = build_servo()
+    servo = build_servo() if rng.random() < 0.02 else None  # the common case reuses one plant, reset below
+    servo = servo or _SERVO["s"]
+    if hasattr(servo.device, "reset"):
+        servo.device.reset()
+    servo.controller.reset(0.0)
+    servo.shaper.reset()
+    p0 = np.asarray(servo.state().p_robot, dtype=float)
+    dt = 1e-3
+    t = 0.0
+    bad = [_value(rng, 0.0) for _ in range(3)]
+    if all(math.isfinite(v) for v in bad):
+        bad[int(rng.integers(3))] = math.nan
+    for _ in range(200):  # a NaN-bearing target from the first tick on
+        servo.tick(t, np.array(bad))
+        t += dt
+    st = servo.state()
+    p = np.asarray(st.p_robot, dtype=float)
+    F = np.asarray(servo.controller.F_cmd, dtype=float)
+    if not np.all(np.isfinite(F)):
+        return "device_failure", f"ServoLoop commanded a non-finite force {F.tolist()}"
+    moved = float(np.linalg.norm(p - p0))
+    if not np.all(np.isfinite(p)) or moved > 0.005:
+        return "device_failure", f"ServoLoop moved {moved * 1e3:.1f} mm on a target {bad} from the first tick, not holding"
+    return "ok", ""
+
+
+DEVICE = [
+    Target("saturate", "device", device=_dev_saturate),
+    Target("target_guard", "device", device=_dev_guard),
+    Target("controller", "device", device=_dev_controller),
+    Target("servo_loop", "device", device=_dev_servo),
+]
+TARGETS = LOADERS + DEVICE
+
+
+# ------------------------------------------------------------------------------------ one case
+def make_case(seed: int, index: int) -> tuple[Target, bytes | None, bool, np.random.Generator]:
+    """The target, file bytes (loaders), whether non-finite was injected and the case's generator."""
+    target = TARGETS[index % len(TARGETS)]
+    rng = np.random.default_rng([int(seed), int(index)])
+    if target.kind != "loader":
+        return target, None, False, rng
+    data, nonfinite = _mutate(_seed_text(target), rng)
+    return target, data, nonfinite, rng
+
+
+_SEEDS: dict[str, str] = {}
+_CLEAN: dict[str, bool] = {}
+
+
+def _seed_text(target: Target) -> str:
+    if target.name not in _SEEDS:
+        _SEEDS[target.name] = target.seed_text()
+    return _SEEDS[target.name]
+
+
+def run_case(seed: int, index: int, folder: Path) -> dict:
+    """Run one case in this process; returns ``{"i", "target", "outcome", "detail"}``."""
+    import warnings
+
+    from vishap._core.errors import VishapError
+
+    target, data, _, rng = make_case(seed, index)
+    rec = {"i": index, "target": target.name, "outcome": "ok", "detail": ""}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            if target.kind == "device":
+                rec["outcome"], rec["detail"] = target.device(rng)
+                return rec
+            path = folder / f"case{target.suffix}"
+            path.write_bytes(data)
+            obj = target.load(path)
+    except VishapError as exc:
+        rec["outcome"] = "refused"
+        rec["detail"] = str(exc)[-200:]
+        return rec
+    except RecursionError:
+        rec["outcome"], rec["detail"] = "crash", "RecursionError"
+        return rec
+    except Exception as exc:  # noqa: BLE001 - counting what escapes is the point
+        rec["outcome"] = "crash"
+        rec["detail"] = f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"
+        return rec
+    if target.name not in _CLEAN:  # a seed file's own infinities (none today) would not count
+        p0 = folder / f"seed{target.suffix}"
+        p0.write_text(_seed_text(target))
+        _CLEAN[target.name] = not _has_nonfinite(target.load(p0))
+    if _file_has_nonfinite(data) or (_CLEAN[target.name] and _has_nonfinite(obj)):
+        rec["outcome"] = "accepted_nonfinite"
+    return rec
+
+
+def _file_has_nonfinite(data: bytes) -> bool:
+    """Whether the file, parsed as YAML without the project's checks, holds NaN or inf as a value
+    (a NaN written in a comment or inside text does not count)."""
+    import yaml
+
+    from vishap._core.filestorage import _FileStorageLoader
+
+    text = "\n".join("" if ln.startswith("%YAML") else ln for ln in data.decode("utf-8", "replace").splitlines())
+    try:
+        docs = list(yaml.load_all(text, Loader=_FileStorageLoader))  # noqa: S506 - a SafeLoader subclass
+    except Exception:  # noqa: BLE001 - a file the plain parser refuses holds no value to count
+        return False
+    return _has_nonfinite(docs)
+
+
+def _worker(seed: int, start: int, stop: int) -> int:
+    with tempfile.TemporaryDirectory(prefix="vishap-fuzz-") as d:
+        folder = Path(d)
+        for i in range(start, stop):
+            print(json.dumps(run_case(seed, i, folder)), flush=True)
+    return 0
+
+
+# ------------------------------------------------------------------------------------ driver
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--cases", type=int, default=100_000, help="number of cases (default 100000)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of every mutation (default 0)")
+    parser.add_argument("--jobs", type=int, default=max(1, min(4, os.cpu_count() or 1)),
+                        help="child processes running cases (default: up to 4)")
+    parser.add_argument("--replay", type=int, default=None, metavar="INDEX", help="run one case here and print it")
+
+
+def _spawn(seed: int, start: int, stop: int) -> subprocess.Popen:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(_REPO), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return subprocess.Popen([sys.executable, "-m", "vishap.bench.fuzz", "--worker", str(seed), str(start), str(stop)],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
+
+
+def fuzz(cases: int, seed: int = 0, jobs: int = 1, *, crash_dir: Path | None = None, progress: bool = False) -> dict:
+    """Run ``cases`` cases in ``jobs`` child processes; returns the record (see the module docstring)."""
+    from tqdm import tqdm
+
+    if cases < 1:
+        from vishap._core.errors import ConfigError
+
+        raise ConfigError(f"expected at least 1 case, got {cases}", field="--cases")
+    jobs = max(1, min(int(jobs), cases))
+    bounds = np.linspace(0, cases, jobs + 1).astype(int)
+    pending = [(int(a), int(b)) for a, b in zip(bounds, bounds[1:]) if b > a]
+    results: dict[int, dict] = {}
+    t0 = time.perf_counter()
+    bar = tqdm(total=cases, desc="fuzz", unit="case", disable=not progress)
+    import selectors
+
+    sel = selectors.DefaultSelector()
+    running = {}
+    for a, b in pending:
+        proc = _spawn(seed, a, b)
+        running[proc] = [a, b, a]  # start, stop, next expected index
+        sel.register(proc.stdout, selectors.EVENT_READ, proc)
+    while running:
+        for key, _ in sel.select():
+            proc = key.data
+            line = proc.stdout.readline()
+            if line:
+                try:
+                    rec = json.loads(line)
+                except json.JSONDecodeError:
+                    continue
+                results[rec["i"]] = rec
+                running[proc][2] = rec["i"] + 1
+                bar.update(1)
+                continue
+            sel.unregister(proc.stdout)
+            rc = proc.wait()
+            a, b, nxt = running.pop(proc)
+            if nxt < b:  # died before finishing: the case it was on crashed the interpreter
+                target, data, _, _ = make_case(seed, nxt)
+                results[nxt] = {"i": nxt, "target": target.name, "outcome": "native_crash",
+                                "detail": f"child process ended with {'signal ' + str(-rc) if rc < 0 else 'code ' + str(rc)}"}
+                bar.update(1)
+                if crash_dir is not None and data is not None:
+                    crash_dir.mkdir(parents=True, exist_ok=True)
+                    (crash_dir / f"case{nxt}_{target.name}{target.suffix}").write_bytes(data)
+                if nxt + 1 < b:
+                    new = _spawn(seed, nxt + 1, b)
+                    running[new] = [nxt + 1, b, nxt + 1]
+                    sel.register(new.stdout, selectors.EVENT_READ, new)
+    bar.close()
+    wall = time.perf_counter() - t0
+    return summarize(results, cases=cases, seed=seed, wall_s=wall)
+
+
+_KIND = re.compile(r"/\S+|[-+]?(?:\d[\d.e+-]*|inf|nan)|\[[^\]]*\]|'[^']*'")
+
+
+def summarize(results: dict[int, dict], *, cases: int, seed: int, wall_s: float) -> dict:
+    by = Counter(r["outcome"] for r in results.values())
+    per_target: dict[str, Counter] = {}
+    examples: dict[str, dict] = {}
+    for r in sorted(results.values(), key=lambda r: r["i"]):
+        per_target.setdefault(r["target"], Counter())[r["outcome"]] += 1
+        if r["outcome"] not in ("ok", "refused"):
+            key = f"{r['target']}:{r['outcome']}:{_KIND.sub('#', r['detail'].split(' (')[0])[:80]}"
+            examples.setdefault(key, {"case": r["i"], "target": r["target"], "outcome": r["outcome"],
+                                      "detail": r["detail"], "count": 0})
+            examples[key]["count"] += 1
+    return {
+        "cases": len(results),
+        "crashes": by["crash"],
+        "native_crashes": by["native_crash"],
+        "accepted_nonfinite": by["accepted_nonfinite"],
+        "device_failures": by["device_failure"],
+        "refused": by["refused"],
+        "accepted": by["ok"],
+        "seed": seed,
+        "requested_cases": cases,
+        "wall_s": round(wall_s, 2),
+        "per_target": {k: dict(v) for k, v in sorted(per_target.items())},
+        "findings": sorted(examples.values(), key=lambda e: -e["count"]),
+    }
+
+
+def run(args: argparse.Namespace) -> dict:
+    out = Path(args.out)
+    if args.replay is not None:
+        with tempfile.TemporaryDirectory(prefix="vishap-fuzz-") as d:
+            return run_case(args.seed, args.replay, Path(d))
+    return fuzz(args.cases, args.seed, args.jobs, crash_dir=out / "crashes", progress=not getattr(args, "json", False))
+
+
+def summary_lines(rec: dict) -> list[str]:
+    """The terminal summary of a fuzz record."""
+    if "cases" not in rec:
+        return [f"case {rec['i']} ({rec['target']}): {rec['outcome']} {rec['detail']}"]
+    lines = [f"{rec['cases']} cases in {rec['wall_s']} s: {rec['crashes']} crashes, {rec['native_crashes']} native "
+             f"crashes, {rec['accepted_nonfinite']} accepted NaN/inf, {rec['device_failures']} device failures"]
+    for f in rec["findings"][:8]:
+        lines.append(f"  {f['count']:>6} x {f['target']} {f['outcome']}: {f['detail'][:100]} (replay: --replay {f['case']})")
+    return lines
+
+
+if __name__ == "__main__":  # the child process of :func:`fuzz`
+    if len(sys.argv) == 5 and sys.argv[1] == "--worker":
+        sys.exit(_worker(int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])))
+    sys.exit("usage: python -m vishap.bench.fuzz --worker SEED START STOP")
