@@ -43,12 +43,14 @@ import numpy as np
 HELP = "fuzz every loader and the device-path inputs; count crashes, native crashes, accepted NaN/inf"
 QUICK_ARGS = ["--cases", "3000"]
 
-__all__ = ["HELP", "QUICK_ARGS", "add_arguments", "run", "TARGETS", "LOADERS", "DEVICE", "make_case", "run_case"]
+__all__ = ["HELP", "QUICK_ARGS", "add_arguments", "run", "TARGETS", "LOADERS", "DEVICE", "OPS", "TOKENS", "apply_ops",
+           "make_case", "run_case", "check_saturate", "check_guard", "check_controller", "check_servo_holds",
+           "GUARD_CONFIG", "fuzz"]
 
 _REPO = Path(__file__).resolve().parents[2]
 _NUMBER = re.compile(r"(?<![\w.])[-+]?(?:\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?)(?![\w.])")
 #: Replacement tokens for a number: (text, is it non-finite once parsed).
-_TOKENS: list[tuple[str, bool]] = [
+TOKENS: list[tuple[str, bool]] = [
     (".nan", True), (".inf", True), ("-.inf", True), (".NaN", True), (".Inf", True), ("1e400", True),
     ("-1e400", True), ("1" + "0" * 400, True), ("1e300", False), ("-1e300", False), ("1e-300", False),
     ("0", False), ("0.0", False), ("-1", False), ("-0.5", False), ("2e9", False), ("9223372036854775808", False),
@@ -56,6 +58,7 @@ _TOKENS: list[tuple[str, bool]] = [
     ("!!timestamp 2024-13-45", False), ("!!binary AAA", False), ("!!python/object:os.system x", False),
     ("&a [*a]", False), ("[" * 200 + "]" * 200, False), ("0x1F", False), ("1_000", False), ("nan", True),
 ]
+NONFINITE_TOKENS = {t for t, bad in TOKENS if bad}
 _JUNK = [b"\x00", b"\xff\xfe", b"\x07", b": : :", b"]]]", b"{{", b"- - -", b"\t", b"%YAML:1.0\n", b"---\n",
          b"? [1]\n: 2\n", b"!!opencv-matrix", b"rows: 3\n", b"data: [", b"\r"]
 
@@ -68,7 +71,7 @@ class Target:
     suffix: str = ".yaml"
     seed_text: Callable[[], str] | None = None
     load: Callable[[Path], object] | None = None
-    device: Callable[[np.random.Generator], tuple[str, str]] | None = None
+    device: Callable[[np.random.Generator], str | None] | None = None
 
 
 def _read(rel: str) -> Callable[[], str]:
@@ -160,44 +163,50 @@ LOADERS = [
 ]
 
 
-def _mutate(text: str, rng: np.random.Generator) -> tuple[bytes, bool]:
-    """One to three mutations of ``text``; returns the bytes and whether a non-finite number was injected."""
+#: Mutation operators: a number replaced (the most telling, so 4 of 10 draws), a line deleted,
+#: repeated or re-indented, the file truncated, junk inserted, a value made deep or self-referencing.
+OPS = ("number", "number", "number", "number", "delete_line", "repeat_line", "indent", "truncate", "junk", "nest")
+
+
+def apply_ops(text: str, ops) -> tuple[bytes, bool]:
+    """Apply mutations ``ops`` — tuples ``(op, a, b, token)`` with ``op`` in :data:`OPS` and
+    ``a``, ``b`` in [0, 1) choosing where — to ``text``; returns the bytes and whether a token
+    meant to be non-finite was written."""
     nonfinite = False
     data = text
-    for _ in range(int(rng.integers(1, 4))):
-        op = int(rng.integers(0, 10))
+    for op, a, b, token in ops:
         lines = data.split("\n")
-        if op <= 3:  # replace a number (the most telling mutation, so the most frequent)
+        i = min(int(a * len(lines)), len(lines) - 1)
+        if op == "number":
             nums = list(_NUMBER.finditer(data))
             if nums:
-                m = nums[int(rng.integers(len(nums)))]
-                tok, bad = _TOKENS[int(rng.integers(len(_TOKENS)))]
-                data = data[: m.start()] + tok + data[m.end():]
-                nonfinite |= bad
-        elif op == 4 and len(lines) > 1:
-            del lines[int(rng.integers(len(lines)))]
+                m = nums[min(int(a * len(nums)), len(nums) - 1)]
+                data = data[: m.start()] + token + data[m.end():]
+                nonfinite |= token in NONFINITE_TOKENS
+        elif op == "delete_line" and len(lines) > 1:
+            del lines[i]
             data = "\n".join(lines)
-        elif op == 5:
-            i = int(rng.integers(len(lines)))
+        elif op == "repeat_line":
             lines.insert(i, lines[i])
             data = "\n".join(lines)
-        elif op == 6:
-            i = int(rng.integers(len(lines)))
-            lines[i] = " " * int(rng.integers(0, 6)) + lines[i].lstrip()
+        elif op == "indent":
+            lines[i] = " " * int(b * 6) + lines[i].lstrip()
             data = "\n".join(lines)
-        elif op == 7:
-            data = data[: int(rng.integers(0, len(data) + 1))]
-        elif op == 8:
-            i = int(rng.integers(0, len(data) + 1))
-            data = data[:i] + _JUNK[int(rng.integers(len(_JUNK)))].decode("latin-1") + data[i:]
-        else:  # a value replaced by a deep or aliased structure
-            i = int(rng.integers(len(lines)))
-            if ":" in lines[i]:
-                key = lines[i].split(":")[0]
-                depth = int(rng.choice([10, 100, 3000]))
-                lines[i] = f"{key}: " + ("[" * depth + "]" * depth if rng.random() < 0.5 else "&r [*r]")
-                data = "\n".join(lines)
-    return data.encode("utf-8", "surrogateescape") if isinstance(data, str) else data, nonfinite
+        elif op == "truncate":
+            data = data[: int(a * (len(data) + 1))]
+        elif op == "junk":
+            k = int(a * (len(data) + 1))
+            data = data[:k] + _JUNK[min(int(b * len(_JUNK)), len(_JUNK) - 1)].decode("latin-1") + data[k:]
+        elif op == "nest" and ":" in lines[i]:
+            depth = (10, 100, 3000)[min(int(b * 3), 2)]
+            lines[i] = lines[i].split(":")[0] + ": " + ("[" * depth + "]" * depth if b < 0.75 else "&r [*r]")
+            data = "\n".join(lines)
+    return data.encode("utf-8", "surrogateescape"), nonfinite
+
+
+def _draw_ops(rng: np.random.Generator) -> list[tuple]:
+    return [(OPS[int(rng.integers(len(OPS)))], float(rng.random()), float(rng.random()),
+             TOKENS[int(rng.integers(len(TOKENS)))][0]) for _ in range(int(rng.integers(1, 4)))]
 
 
 def _has_nonfinite(obj, depth: int = 0, seen: set | None = None) -> bool:
@@ -235,135 +244,151 @@ def _value(rng: np.random.Generator, sane: float) -> float:
     return float(_HOSTILE[int(rng.integers(len(_HOSTILE)))]) * (1 if rng.random() < 0.5 else -1)
 
 
-def _dev_saturate(rng):
+def check_saturate(F, limit: float) -> str | None:
+    """What is wrong with ``saturate(F, limit)`` (None when nothing): the output must be finite and
+    within a valid limit, an overflowing finite force must end *at* the limit, not at zero, and an
+    invalid limit (NaN, inf, ≤ 0) must not let a force through."""
     from vishap.world.force_laws import saturate
 
-    F = np.array([_value(rng, 3.0) for _ in range(3)])
-    limit = _value(rng, 8.5) if rng.random() < 0.5 else 8.5
-    F_in = F.copy()
+    F_in = np.array(F, dtype=float)
     try:
-        out = saturate(F, limit)
+        out = saturate(F_in.copy(), limit)
     except (ValueError, ArithmeticError) as exc:
         if math.isfinite(limit) and limit > 0:
-            return "crash", f"saturate raised {type(exc).__name__} for a valid limit {limit}"
-        return "refused", ""
+            return f"saturate raised {type(exc).__name__} for a valid limit {limit}"
+        return None
     if not np.all(np.isfinite(out)):
-        return "device_failure", f"saturate({F_in.tolist()}, {limit}) -> non-finite {out.tolist()}"
+        return f"saturate({F_in.tolist()}, {limit}) -> non-finite {np.asarray(out).tolist()}"
     n = float(np.linalg.norm(out))
     ok_limit = math.isfinite(limit) and limit > 0
-    if not ok_limit and n > 0:
-        return "device_failure", f"saturate passed force |F|={n:.3g} through an invalid limit {limit}"
-    if ok_limit and n > limit * (1 + 1e-9):
-        return "device_failure", f"saturate left |F|={n:.3g} above the limit {limit}"
-    if ok_limit and np.all(np.isfinite(F_in)) and np.linalg.norm(F_in / 1e200) * 1e200 > limit and n < 0.999 * limit:
-        return "device_failure", f"saturate sent an overflowing force {F_in.tolist()} to |F|={n:.3g}, not the limit"
-    return "ok", ""
+    if not ok_limit:
+        return f"saturate passed force |F|={n:.3g} through an invalid limit {limit}" if n > 0 else None
+    if n > limit * (1 + 1e-9):
+        return f"saturate left |F|={n:.3g} above the limit {limit}"
+    if np.all(np.isfinite(F_in)) and float(np.linalg.norm(F_in / 1e200)) * 1e200 > limit and n < 0.999 * limit:
+        return f"saturate sent an overflowing force {F_in.tolist()} to |F|={n:.3g}, not the limit {limit}"
+    return None
+
+
+def _dev_saturate(rng):
+    F = [_value(rng, 3.0) for _ in range(3)]
+    limit = _value(rng, 8.5) if rng.random() < 0.5 else 8.5
+    return check_saturate(F, limit)
+
+
+GUARD_CONFIG = dict(box_lo=(-0.1, -0.1, -0.1), box_hi=(0.1, 0.1, 0.1), retreat_point=(0.0, 0.0, 0.05),
+                    stale_after_s=0.15, retreat_after_s=0.5, min_confidence=0.2)
+
+
+def check_guard(config: dict, inputs) -> str | None:
+    """Build a ``TargetGuard`` from ``config`` (any non-finite value must be refused) and feed it
+    ``inputs``: tuples ``(dt_s, X_d, age_s, confidence)`` with the target made ``age_s`` before
+    now (negative: stamped in the future). Every decision must be finite and inside the box,
+    and a target from the future is never tracked."""
+    from vishap.runtime.safety import TargetGuard
+
+    try:
+        guard = TargetGuard(**{k: (np.array(v, dtype=float) if isinstance(v, tuple) else v) for k, v in config.items()})
+    except (ValueError, TypeError):
+        return None
+    bad = [k for k, v in config.items() if not np.all(np.isfinite(np.asarray(v, dtype=float)))]
+    if bad:
+        return f"TargetGuard accepted a non-finite {bad[0]}={config[bad[0]]}"
+    t = 1.0
+    for dt, X, age, conf in inputs:
+        t += dt
+        d = guard.decide(t, X, t - age, conf)
+        if not np.all(np.isfinite(d.X_d)) or np.any(d.X_d < guard.box_lo - 1e-12) or np.any(d.X_d > guard.box_hi + 1e-12):
+            return f"TargetGuard gave {d.X_d.tolist()} for X={list(X)}, age={age}, confidence={conf}"
+        if age < -1e-9 and math.isfinite(age) and d.action == "track":
+            return f"TargetGuard tracked a target stamped {-age:.3g} s in the future"
+    return None
 
 
 def _dev_guard(rng):
-    from vishap.runtime.safety import TargetGuard
-
-    cfg = dict(box_lo=[-0.1, -0.1, -0.1], box_hi=[0.1, 0.1, 0.1], retreat_point=[0.0, 0.0, 0.05],
-               stale_after_s=0.15, retreat_after_s=0.5, min_confidence=0.2)
-    hostile_cfg = rng.random() < 0.3
-    if hostile_cfg:
+    cfg = dict(GUARD_CONFIG)
+    if rng.random() < 0.3:
         key = list(cfg)[int(rng.integers(len(cfg)))]
         v = cfg[key]
-        cfg[key] = [_value(rng, x) for x in v] if isinstance(v, list) else _value(rng, v)
-    try:
-        guard = TargetGuard(**{k: (np.array(v) if isinstance(v, list) else v) for k, v in cfg.items()})
-    except (ValueError, TypeError):
-        return "refused", ""
-    if hostile_cfg:
-        bad = [k for k, v in cfg.items() if not np.all(np.isfinite(np.asarray(v, dtype=float)))]
-        if bad:
-            return "device_failure", f"TargetGuard accepted a non-finite {bad[0]}={cfg[bad[0]]}"
-    t = 1.0
-    for step in range(int(rng.integers(1, 6))):
-        t += 0.001
-        future = rng.random() < 0.3
-        made_at = t + float(rng.choice([0.01, 1.0, 1e6])) if future else _value(rng, t - 0.01)
-        X = [_value(rng, 0.02) for _ in range(3)]
-        conf = _value(rng, 0.9)
-        d = guard.decide(t, X, made_at, conf)
-        if not np.all(np.isfinite(d.X_d)) or np.any(d.X_d < guard.box_lo - 1e-12) or np.any(d.X_d > guard.box_hi + 1e-12):
-            return "device_failure", f"TargetGuard gave {d.X_d.tolist()} for X={X}, made_at={made_at}, confidence={conf}"
-        if future and d.action == "track":
-            return "device_failure", f"TargetGuard tracked a target stamped {made_at - t:.3g} s in the future"
-    return "ok", ""
+        cfg[key] = tuple(_value(rng, x) for x in v) if isinstance(v, tuple) else _value(rng, v)
+    inputs = []
+    for _ in range(int(rng.integers(1, 6))):
+        age = -float(rng.choice([0.01, 1.0, 1e6])) if rng.random() < 0.3 else _value(rng, 0.01)
+        inputs.append((0.001, [_value(rng, 0.02) for _ in range(3)], age, _value(rng, 0.9)))
+    return check_guard(cfg, inputs)
 
 
 _CONTROLLER = {}
 
 
-def _controller():
-    if "c" not in _CONTROLLER:
-        from vishap.robot.controller import Controller
-        from vishap.robot.device import DeviceLimits
+def check_controller(q, w, target, force) -> str | None:
+    """Three ticks of ``Controller.compute`` at joint state ``q``, ``w`` toward ``target`` with an
+    extra ``force``: torques finite and within the motor bound, and never all zero while the joint
+    state is finite (zero would drop gravity compensation and let the arm fall)."""
+    from vishap.robot.controller import Controller
+    from vishap.robot.device import DeviceLimits
+    from vishap.robot.gravity import gravity_torque
 
+    if "c" not in _CONTROLLER:
         _CONTROLLER["c"] = Controller(limits=DeviceLimits.from_params())
-    return _CONTROLLER["c"]
+    c = _CONTROLLER["c"]
+    c.reset(0.0)
+    tau = None
+    for k in range(3):
+        tau = c.compute(1.0 + 0.001 * k, *q, *w, *target, 0.0, 0.0, 0.0, *force)
+    tau = np.asarray(tau, dtype=float)
+    peak = DeviceLimits.from_params().max_torque_nm
+    if not np.all(np.isfinite(tau)):
+        return f"Controller.compute gave non-finite torque {tau.tolist()}"
+    if np.any(np.abs(tau) > peak * (1 + 1e-9)):
+        return f"Controller.compute gave |tau| {np.abs(tau).max():.3g} above {peak:.3g} N·m"
+    if np.all(np.isfinite(q)) and np.all(np.isfinite(w)) and np.all(tau == 0.0) \
+            and np.linalg.norm(gravity_torque(np.asarray(q, dtype=float))) > 1e-6:
+        return f"Controller.compute commanded zero torque, dropping gravity compensation (target {list(target)}, force {list(force)})"
+    return None
 
 
 def _dev_controller(rng):
-    from vishap.robot.gravity import gravity_torque
-
-    c = _controller()
-    c.reset(0.0)
     q = np.array([0.1, 0.3, -0.2]) + 0.2 * rng.standard_normal(3)
-    w = np.zeros(3)
-    if rng.random() < 0.2:
-        w = np.array([_value(rng, 0.1) for _ in range(3)])
-    target = [_value(rng, s) for s in (0.0, 0.0, 0.0)]
+    w = [_value(rng, 0.1) for _ in range(3)] if rng.random() < 0.2 else [0.0, 0.0, 0.0]
+    target = [_value(rng, 0.0) for _ in range(3)]
     force = [_value(rng, 0.0) for _ in range(3)] if rng.random() < 0.6 else [0.0, 0.0, 0.0]
-    tau = None
-    for k in range(3):
-        tau = c.compute(0.001 * k + 1.0, *q, *w, *target, 0.0, 0.0, 0.0, *force)
-    tau = np.asarray(tau, dtype=float)
-    peak = c.limits.max_torque_nm if getattr(c, "limits", None) is not None else 8.5 * 0.4
-    if not np.all(np.isfinite(tau)):
-        return "device_failure", f"Controller.compute gave non-finite torque {tau.tolist()}"
-    if np.any(np.abs(tau) > peak * (1 + 1e-9)):
-        return "device_failure", f"Controller.compute gave |tau| {np.abs(tau).max():.3g} above {peak:.3g} N·m"
-    tg = gravity_torque(q)
-    if np.all(np.isfinite(w)) and np.all(tau == 0.0) and np.linalg.norm(tg) > 1e-6:
-        return "device_failure", (f"Controller.compute commanded zero torque, dropping gravity compensation "
-                                  f"(target {target}, force {force})")
-    return "ok", ""
+    return check_controller(q.tolist(), w, target, force)
 
 
 _SERVO = {}
 
 
-def _dev_servo(rng):
+def check_servo_holds(target, ticks: int = 200) -> str | None:
+    """``ServoLoop.tick`` fed ``target`` (holding a NaN or inf) from the first tick must hold the arm
+    where it is (within 5 mm) with a finite force."""
     from vishap.robot.build import build_servo
 
     if "s" not in _SERVO:
         _SERVO["s"] = build_servo()
-    servo = build_servo() if rng.random() < 0.02 else None  # the common case reuses one plant, reset below
-    servo = servo or _SERVO["s"]
-    if hasattr(servo.device, "reset"):
-        servo.device.reset()
+    servo = _SERVO["s"]
+    servo.device.reset()
     servo.controller.reset(0.0)
     servo.shaper.reset()
     p0 = np.asarray(servo.state().p_robot, dtype=float)
-    dt = 1e-3
-    t = 0.0
+    X = np.array(target, dtype=float)
+    for k in range(ticks):
+        servo.tick(k * 1e-3, X)
+    p = np.asarray(servo.state().p_robot, dtype=float)
+    F = np.asarray(servo.controller.F_cmd, dtype=float)
+    if not np.all(np.isfinite(F)):
+        return f"ServoLoop commanded a non-finite force {F.tolist()}"
+    moved = float(np.linalg.norm(p - p0))
+    if not np.all(np.isfinite(p)) or moved > 0.005:
+        return f"ServoLoop moved {moved * 1e3:.1f} mm on a target {list(target)} from the first tick, not holding"
+    return None
+
+
+def _dev_servo(rng):
     bad = [_value(rng, 0.0) for _ in range(3)]
     if all(math.isfinite(v) for v in bad):
         bad[int(rng.integers(3))] = math.nan
-    for _ in range(200):  # a NaN-bearing target from the first tick on
-        servo.tick(t, np.array(bad))
-        t += dt
-    st = servo.state()
-    p = np.asarray(st.p_robot, dtype=float)
-    F = np.asarray(servo.controller.F_cmd, dtype=float)
-    if not np.all(np.isfinite(F)):
-        return "device_failure", f"ServoLoop commanded a non-finite force {F.tolist()}"
-    moved = float(np.linalg.norm(p - p0))
-    if not np.all(np.isfinite(p)) or moved > 0.005:
-        return "device_failure", f"ServoLoop moved {moved * 1e3:.1f} mm on a target {bad} from the first tick, not holding"
-    return "ok", ""
+    return check_servo_holds(bad)
 
 
 DEVICE = [
@@ -382,7 +407,7 @@ def make_case(seed: int, index: int) -> tuple[Target, bytes | None, bool, np.ran
     rng = np.random.default_rng([int(seed), int(index)])
     if target.kind != "loader":
         return target, None, False, rng
-    data, nonfinite = _mutate(_seed_text(target), rng)
+    data, nonfinite = apply_ops(_seed_text(target), _draw_ops(rng))
     return target, data, nonfinite, rng
 
 
@@ -408,7 +433,8 @@ def run_case(seed: int, index: int, folder: Path) -> dict:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             if target.kind == "device":
-                rec["outcome"], rec["detail"] = target.device(rng)
+                failure = target.device(rng)
+                rec["outcome"], rec["detail"] = ("device_failure", failure) if failure else ("ok", "")
                 return rec
             path = folder / f"case{target.suffix}"
             path.write_bytes(data)
