@@ -38,6 +38,7 @@ __all__ = [
     "Schema",
     "read_mapping",
     "read_yaml_text",
+    "read_text",
     "ProjectLoader",
     "check_tree",
     "load_config",
@@ -185,20 +186,27 @@ def check_tree(data: Any, *, file: str | os.PathLike | None = None) -> Any:
 
 
 # ---------------------------------------------------------------------------------------- files
-def read_mapping(path: str | os.PathLike) -> dict[str, Any]:
-    """Read a YAML (``.yaml``/``.yml``), TOML (``.toml``) or JSON (``.json``) file whose top level is
-    a mapping; see the module docstring for what is guaranteed."""
+def read_text(path: str | os.PathLike) -> str:
+    """The UTF-8 text of a configuration file no larger than :data:`MAX_FILE_BYTES`; a missing,
+    unreadable, binary or huge file is one :class:`ConfigError` naming it."""
     path = Path(path)
     try:
         if not path.is_file():
             raise ConfigError("file not found" if not path.exists() else "not a file", file=path)
         if path.stat().st_size > MAX_FILE_BYTES:
             raise ConfigError(f"larger than {MAX_FILE_BYTES // 2**20} MiB: not a configuration file", file=path)
-        text = path.read_bytes().decode("utf-8")
+        return path.read_bytes().decode("utf-8")
     except VishapError:
         raise
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise ConfigError(f"cannot read file ({_one_line(exc)})", file=path) from None
+
+
+def read_mapping(path: str | os.PathLike) -> dict[str, Any]:
+    """Read a YAML (``.yaml``/``.yml``), TOML (``.toml``) or JSON (``.json``) file whose top level is
+    a mapping; see the module docstring for what is guaranteed."""
+    path = Path(path)
+    text = read_text(path)
     suffix = path.suffix.lower()
     if suffix in (".toml", ".json"):
         kind = suffix[1:].upper()

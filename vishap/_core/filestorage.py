@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-from vishap._core.config import MAX_FILE_BYTES, ProjectLoader, read_yaml_text
-from vishap._core.errors import ConfigError, VishapError
+from vishap._core.config import ProjectLoader, read_text, read_yaml_text
+from vishap._core.errors import ConfigError
 
 __all__ = ["read_filestorage", "parse_filestorage", "MATRIX_TAG"]
 
@@ -123,14 +123,5 @@ def _holds_matrix(value) -> bool:
 def read_filestorage(path: str | os.PathLike) -> dict[str, Any]:
     """Read a FileStorage YAML file; see :func:`parse_filestorage`."""
     path = Path(path)
-    try:
-        if not path.is_file():
-            raise ConfigError("file not found" if not path.exists() else "not a file", file=path)
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise ConfigError(f"larger than {MAX_FILE_BYTES // 2**20} MiB: not a calibration file", file=path)
-        text = path.read_bytes().decode("utf-8")
-    except VishapError:
-        raise
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise ConfigError(f"cannot read file ({' '.join(str(exc).split())})", file=path) from None
+    text = read_text(path)
     return parse_filestorage(text, file=path)

@@ -94,58 +94,30 @@ def _skin_text() -> str:
     return default_skin_model_path().read_text()
 
 
-def _load_rig(p):
-    from vishap.vision.rig import StereoRig
+def _call(spec: str, then: Callable | None = None) -> Callable[[Path], object]:
+    """A loader ``"module:function"`` imported on first use (child processes import what they run)."""
+    def load(p: Path):
+        import importlib
 
-    return StereoRig.load(p)
+        module, name = spec.split(":")
+        fn = importlib.import_module(module)
+        for part in name.split("."):
+            fn = getattr(fn, part)
+        out = fn(p)
+        return out if then is None else then(out)
 
-
-def _load_world_scene(p):
-    from vishap.world.scene import load_scene
-
-    return load_scene(p)
-
-
-def _load_synth_scene(p):
-    from vishap.sim.scene_objects import load_scene_spec
-
-    return load_scene_spec(p)
+    return load
 
 
-def _load_skin(p):
-    from vishap.vision.skin_model import SkinModel
-
-    return SkinModel.load(p)
-
-
-def _load_tactile(p):
-    from vishap.tactile.config import load_tactile_config
-
-    return load_tactile_config(p)
-
-
-def _load_gains(p):
-    from vishap.robot.gains import load_gains
-
-    return load_gains(p)
-
-
-def _load_camera_robot(p):
-    from vishap.registration import camera_robot
-
-    return camera_robot.load(p)
-
-
-def _load_trajectory(p):
-    from vishap.sim.trajectory import load_trajectory
-
-    return load_trajectory(p)[0]
-
-
-def _load_modes(p):
-    from vishap.world.modes import load_modes
-
-    return load_modes(p)
+_load_rig = _call("vishap.vision.rig:StereoRig.load")
+_load_world_scene = _call("vishap.world.scene:load_scene")
+_load_synth_scene = _call("vishap.sim.scene_objects:load_scene_spec")
+_load_skin = _call("vishap.vision.skin_model:SkinModel.load")
+_load_tactile = _call("vishap.tactile.config:load_tactile_config")
+_load_gains = _call("vishap.robot.gains:load_gains")
+_load_camera_robot = _call("vishap.registration.camera_robot:load")
+_load_trajectory = _call("vishap.sim.trajectory:load_trajectory", lambda r: r[0])
+_load_modes = _call("vishap.world.modes:load_modes")
 
 
 LOADERS = [
@@ -588,7 +560,7 @@ def run(args: argparse.Namespace) -> dict:
     if args.replay is not None:
         with tempfile.TemporaryDirectory(prefix="vishap-fuzz-") as d:
             return run_case(args.seed, args.replay, Path(d))
-    return fuzz(args.cases, args.seed, args.jobs, crash_dir=out / "crashes", progress=not getattr(args, "json", False))
+    return fuzz(args.cases, args.seed, args.jobs, crash_dir=out / "crashes", progress=sys.stderr.isatty())
 
 
 def summary_lines(rec: dict) -> list[str]:
