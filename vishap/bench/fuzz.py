@@ -483,7 +483,8 @@ def fuzz(cases: int, seed: int = 0, jobs: int = 1, *, crash_dir: Path | None = N
     pending = [(int(a), int(b)) for a, b in zip(bounds, bounds[1:]) if b > a]
     results: dict[int, dict] = {}
     t0 = time.perf_counter()
-    bar = tqdm(total=cases, desc="fuzz", unit="case", disable=not progress)
+    # on a terminal a live bar; in a log a line every half minute
+    bar = tqdm(total=cases, desc="fuzz", unit="case", disable=not progress, mininterval=0.1 if sys.stderr.isatty() else 30)
     import selectors
 
     sel = selectors.DefaultSelector()
@@ -560,7 +561,7 @@ def run(args: argparse.Namespace) -> dict:
     if args.replay is not None:
         with tempfile.TemporaryDirectory(prefix="vishap-fuzz-") as d:
             return run_case(args.seed, args.replay, Path(d))
-    return fuzz(args.cases, args.seed, args.jobs, crash_dir=out / "crashes", progress=sys.stderr.isatty())
+    return fuzz(args.cases, args.seed, args.jobs, crash_dir=out / "crashes", progress=True)
 
 
 def summary_lines(rec: dict) -> list[str]:
