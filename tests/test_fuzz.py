@@ -105,6 +105,24 @@ def test_native_crash_is_counted_not_fatal(tmp_path, monkeypatch):
     assert os.path.basename(next((tmp_path / "crashes").iterdir())).startswith("case2_")
 
 
+def test_hanging_case_is_counted_and_its_child_ended(tmp_path, monkeypatch):
+    import subprocess
+    import sys
+
+    def spawn(seed, start, stop):
+        if start == 0:  # the first child answers once, then hangs on its second case
+            code = ("import json, time\nprint(json.dumps({'i': 0, 'target': 'rig', 'outcome': 'ok', 'detail': ''}), "
+                    "flush=True)\ntime.sleep(120)\n")
+        else:
+            code = (f"import json\nfor i in range({start}, {stop}):\n"
+                    "    print(json.dumps({'i': i, 'target': 'rig', 'outcome': 'refused', 'detail': ''}), flush=True)\n")
+        return subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+
+    monkeypatch.setattr(fuzz, "_spawn", spawn)
+    rec = fuzz.fuzz(4, seed=0, jobs=1, crash_dir=tmp_path, case_timeout_s=1.0)
+    assert rec["cases"] == 4 and rec["hangs"] == 1 and rec["native_crashes"] == 0 and rec["refused"] == 2
+
+
 def test_bench_fuzz_prints_one_json_record(tmp_path, capsys):
     import json
 

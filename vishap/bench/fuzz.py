@@ -20,7 +20,8 @@ an arm that moves on a NaN target from the first tick. Each violated property is
 
 Cases run in child processes (``--jobs``) that report one JSON line per case; a child killed by a
 signal (SIGSEGV, SIGABRT) is a *native crash* of the case it was running, which is written to
-``OUT/crashes/`` as a reproducer, and a new child carries on with the next case.
+``OUT/crashes/`` as a reproducer, and a new child carries on with the next case. A case that runs
+longer than ``--case-timeout`` is a *hang*: its child is ended the same way.
 """
 from __future__ import annotations
 
@@ -431,16 +432,26 @@ def run_case(seed: int, index: int, folder: Path) -> dict:
     return rec
 
 
-def _file_has_nonfinite(data: bytes) -> bool:
-    """Whether the file, parsed as YAML without the project's checks, holds NaN or inf as a value
-    (a NaN written in a comment or inside text does not count)."""
+def _plain_loader():
+    """A plain SafeLoader that also builds ``!!opencv-matrix`` nodes: the fuzzer's own view of a
+    file, independent of the reader under test."""
     import yaml
 
-    from vishap._core.filestorage import _FileStorageLoader
+    class Plain(yaml.SafeLoader):
+        pass
+
+    Plain.add_constructor("tag:yaml.org,2002:opencv-matrix", lambda loader, node: loader.construct_mapping(node, deep=True))
+    return Plain
+
+
+def _file_has_nonfinite(data: bytes) -> bool:
+    """Whether the file, parsed as plain YAML, holds NaN or inf as a value (a NaN written in a
+    comment or inside text does not count)."""
+    import yaml
 
     text = "\n".join("" if ln.startswith("%YAML") else ln for ln in data.decode("utf-8", "replace").splitlines())
     try:
-        docs = list(yaml.load_all(text, Loader=_FileStorageLoader))  # noqa: S506 - a SafeLoader subclass
+        docs = list(yaml.load_all(text, Loader=_plain_loader()))  # noqa: S506 - a SafeLoader subclass
     except Exception:  # noqa: BLE001 - a file the plain parser refuses holds no value to count
         return False
     return _has_nonfinite(docs)
@@ -460,6 +471,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of every mutation (default 0)")
     parser.add_argument("--jobs", type=int, default=max(1, min(4, os.cpu_count() or 1)),
                         help="child processes running cases (default: up to 4)")
+    parser.add_argument("--case-timeout", type=float, default=60.0, metavar="SECONDS",
+                        help="a case running longer is a hang: its child is ended (default 60)")
     parser.add_argument("--replay", type=int, default=None, metavar="INDEX", help="run one case here and print it")
 
 
@@ -470,7 +483,8 @@ def _spawn(seed: int, start: int, stop: int) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
 
 
-def fuzz(cases: int, seed: int = 0, jobs: int = 1, *, crash_dir: Path | None = None, progress: bool = False) -> dict:
+def fuzz(cases: int, seed: int = 0, jobs: int = 1, *, crash_dir: Path | None = None, progress: bool = False,
+         case_timeout_s: float = 60.0) -> dict:
     """Run ``cases`` cases in ``jobs`` child processes; returns the record (see the module docstring)."""
     from tqdm import tqdm
 
@@ -489,15 +503,23 @@ def fuzz(cases: int, seed: int = 0, jobs: int = 1, *, crash_dir: Path | None = N
 
     sel = selectors.DefaultSelector()
     running = {}
+    hung: dict = {}
     for a, b in pending:
         proc = _spawn(seed, a, b)
         running[proc] = [a, b, a]  # start, stop, next expected index
         sel.register(proc.stdout, selectors.EVENT_READ, proc)
+    last = {proc: time.monotonic() for proc in running}
     while running:
-        for key, _ in sel.select():
+        now = time.monotonic()
+        for proc in list(running):  # a case that runs on and on is a hang: end that child
+            if proc.poll() is None and now - last.get(proc, now) > case_timeout_s:
+                hung[proc] = True
+                proc.kill()
+        for key, _ in sel.select(timeout=1.0):
             proc = key.data
             line = proc.stdout.readline()
             if line:
+                last[proc] = time.monotonic()
                 try:
                     rec = json.loads(line)
                 except json.JSONDecodeError:
@@ -509,10 +531,14 @@ def fuzz(cases: int, seed: int = 0, jobs: int = 1, *, crash_dir: Path | None = N
             sel.unregister(proc.stdout)
             rc = proc.wait()
             a, b, nxt = running.pop(proc)
-            if nxt < b:  # died before finishing: the case it was on crashed the interpreter
+            if nxt < b:  # died before finishing: the case it was on crashed the interpreter (or hung)
                 target, data, _, _ = make_case(seed, nxt)
-                results[nxt] = {"i": nxt, "target": target.name, "outcome": "native_crash",
-                                "detail": f"child process ended with {'signal ' + str(-rc) if rc < 0 else 'code ' + str(rc)}"}
+                if hung.pop(proc, False):
+                    outcome, detail = "hang", f"no answer within {case_timeout_s:g} s"
+                else:
+                    outcome = "native_crash"
+                    detail = f"child process ended with {'signal ' + str(-rc) if rc < 0 else 'code ' + str(rc)}"
+                results[nxt] = {"i": nxt, "target": target.name, "outcome": outcome, "detail": detail}
                 bar.update(1)
                 if crash_dir is not None and data is not None:
                     crash_dir.mkdir(parents=True, exist_ok=True)
@@ -520,6 +546,7 @@ def fuzz(cases: int, seed: int = 0, jobs: int = 1, *, crash_dir: Path | None = N
                 if nxt + 1 < b:
                     new = _spawn(seed, nxt + 1, b)
                     running[new] = [nxt + 1, b, nxt + 1]
+                    last[new] = time.monotonic()
                     sel.register(new.stdout, selectors.EVENT_READ, new)
     bar.close()
     wall = time.perf_counter() - t0
@@ -546,6 +573,7 @@ def summarize(results: dict[int, dict], *, cases: int, seed: int, wall_s: float)
         "native_crashes": by["native_crash"],
         "accepted_nonfinite": by["accepted_nonfinite"],
         "device_failures": by["device_failure"],
+        "hangs": by["hang"],
         "refused": by["refused"],
         "accepted": by["ok"],
         "seed": seed,
@@ -561,7 +589,8 @@ def run(args: argparse.Namespace) -> dict:
     if args.replay is not None:
         with tempfile.TemporaryDirectory(prefix="vishap-fuzz-") as d:
             return run_case(args.seed, args.replay, Path(d))
-    return fuzz(args.cases, args.seed, args.jobs, crash_dir=out / "crashes", progress=True)
+    return fuzz(args.cases, args.seed, args.jobs, crash_dir=out / "crashes", progress=True,
+                case_timeout_s=args.case_timeout)
 
 
 def summary_lines(rec: dict) -> list[str]:
@@ -569,7 +598,8 @@ def summary_lines(rec: dict) -> list[str]:
     if "cases" not in rec:
         return [f"case {rec['i']} ({rec['target']}): {rec['outcome']} {rec['detail']}"]
     lines = [f"{rec['cases']} cases in {rec['wall_s']} s: {rec['crashes']} crashes, {rec['native_crashes']} native "
-             f"crashes, {rec['accepted_nonfinite']} accepted NaN/inf, {rec['device_failures']} device failures"]
+             f"crashes, {rec['hangs']} hangs, {rec['accepted_nonfinite']} accepted NaN/inf, "
+             f"{rec['device_failures']} device failures"]
     for f in rec["findings"][:8]:
         lines.append(f"  {f['count']:>6} x {f['target']} {f['outcome']}: {f['detail'][:100]} (replay: --replay {f['case']})")
     return lines
