@@ -48,3 +48,123 @@ def test_errors_are_one_line(tmp_path, capsys):
     assert main(["rig", "new", "--out", str(tmp_path / "r.yaml"), "--baseline", "-1"]) == 2
     assert "baseline" in capsys.readouterr().err
     assert not (tmp_path / "r.yaml").exists()
+
+
+# ---------------------------------------------------------------- issue 17: output, summaries, bad --out
+def test_bare_vishap_exits_non_zero_with_help(capsys):
+    assert main([]) == 2
+    assert "COMMAND" in capsys.readouterr().err
+    out = subprocess.run([sys.executable, "-m", "vishap"], capture_output=True, text=True)
+    assert out.returncode == 2 and "usage: vishap" in out.stderr
+
+
+def test_summary_on_a_terminal_json_with_flag_or_pipe(tmp_path, capsys, monkeypatch):
+    path = tmp_path / "rig.yaml"
+    assert main(["rig", "new", "--out", str(path)]) == 0
+    assert json.loads(capsys.readouterr().out)["image_size"] == [640, 480]  # not a terminal: JSON
+    monkeypatch.setattr(sys.stdout, "isatty", lambda: True)
+    assert main(["rig", "show", str(path)]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith(f"rig {path}: 640x480 px, fx 554.3 px (60.0° horizontal), baseline 60.0 mm")
+    assert len(text) < 300 and "{" not in text
+    assert main(["rig", "show", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["baseline_m"] == pytest.approx(0.06)
+
+
+def test_rig_new_refuses_to_replace_a_file_and_names_bad_paths(tmp_path, capsys):
+    import os
+    import stat
+
+    path = tmp_path / "rig.yaml"
+    old = os.umask(0o022)
+    try:
+        assert main(["rig", "new", "--out", str(path)]) == 0
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644  # group-readable calibration file
+    before = path.read_bytes()
+    assert main(["rig", "new", "--out", str(path), "--baseline", "0.1"]) == 2
+    assert "exists" in capsys.readouterr().err and path.read_bytes() == before
+    assert main(["rig", "new", "--out", str(path), "--baseline", "0.1", "--overwrite"]) == 0
+    capsys.readouterr()
+    for bad, what in ((tmp_path, "is a folder"), (path / "x.yaml", "is a file")):
+        assert main(["rig", "new", "--out", str(bad)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and what in err, err
+
+
+def _contact_npz(path, **edit):
+    import numpy as np
+
+    from vishap.tactile.scenarios import press, to_arrays
+
+    d = to_arrays(press(0.05))
+    d.update(edit)
+    np.savez(path, **d)
+    return path
+
+
+def test_tactile_render_out_is_written_whole(tmp_path, capsys):
+    npz = _contact_npz(tmp_path / "c.npz")
+    out = tmp_path / "render"
+    out.mkdir()
+    (out / "mine.txt").write_text("keep")
+    argv = ["tactile", "render", "--input", str(npz), "--no-plots", "--out", str(out)]
+    assert main(argv) == 2
+    assert "not empty" in capsys.readouterr().err and sorted(p.name for p in out.iterdir()) == ["mine.txt"]
+    assert main(argv + ["--overwrite"]) == 0
+    rec = json.loads(capsys.readouterr().out)
+    assert rec["out"] == str(out.absolute()) and "render.json" in rec["files"]
+    assert json.loads((out / "render.json").read_text())["samples"] == rec["samples"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.npz", "render"]
+    assert main(["tactile", "render", "--input", str(npz), "--out", str(npz)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "not a folder" in err
+
+
+def test_tactile_render_refuses_nan_contacts_and_junk_npz(tmp_path, capsys):
+    import numpy as np
+
+    from vishap.tactile.scenarios import press, to_arrays
+
+    force = to_arrays(press(0.05))["normal_force_n"].astype(float)
+    force[3] = np.nan
+    npz = _contact_npz(tmp_path / "c.npz", normal_force_n=force)
+    assert main(["tactile", "render", "--input", str(npz), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "normal_force_n" in err and "NaN" in err and not (tmp_path / "o").exists()
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"PK\x03\x04 not a zip")
+    assert main(["tactile", "render", "--input", str(junk), "--out", str(tmp_path / "o")]) == 2
+    assert "junk.npz" in capsys.readouterr().err
+
+
+def test_bench_refuses_a_non_empty_out(tmp_path, capsys):
+    out = tmp_path / "b"
+    out.mkdir()
+    (out / "earlier.json").write_text("{}")
+    assert main(["bench", "fuzz", "--cases", "1", "--jobs", "1", "--out", str(out)]) == 2
+    assert "not empty" in capsys.readouterr().err and (out / "earlier.json").read_text() == "{}"
+
+
+@pytest.mark.render
+def test_failed_synth_keeps_what_another_run_wrote_in_its_new_parent(tmp_path, monkeypatch, capsys):
+    import vishap.sim.writer as w
+
+    parent = tmp_path / "runs"
+    real = w.render_frames
+
+    def failing(p, r):
+        for i, item in enumerate(real(p, r)):
+            if i == 1:
+                (parent / "other").mkdir()  # another run finished meanwhile
+                (parent / "other" / "gt.npz").write_text("done")
+                raise KeyboardInterrupt
+            yield item
+
+    monkeypatch.setattr(w, "render_frames", failing)
+    argv = ["synth", "--scene", "wall", "--frames", "3", "--resolution", "160x120", "--quiet", "--out",
+            str(parent / "mine")]
+    assert main(argv) == 130
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["runs"]
+    assert sorted(p.name for p in parent.iterdir()) == ["other"] and (parent / "other" / "gt.npz").is_file()

@@ -155,3 +155,137 @@ def test_save_is_atomic(ideal_rig, tmp_path, monkeypatch):
         ideal_rig.save(target)
     assert target.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["rig.yaml"]
+
+
+# ---------------------------------------------------------------- hostile files (issue 17)
+import re  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+
+
+def _replace_node(text: str, name: str, body: str) -> str:
+    return re.sub(rf"^{name}: !!opencv-matrix.*?\]\n", f"{name}: {body}\n", text, count=1, flags=re.S | re.M)
+
+
+_NO_COLS = "!!opencv-matrix\n   rows: 3\n   dt: d\n   data: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]"
+_ROWS_TWICE = "!!opencv-matrix\n   rows: 3\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]"
+
+
+@pytest.mark.parametrize("body, what", [(_NO_COLS, "field 'R': !!opencv-matrix lacks 'cols:'"),
+                                        (_ROWS_TWICE, "'rows' is given twice line 30")])
+def test_malformed_matrix_node_never_crashes_the_interpreter(ideal_rig, tmp_path, body, what):
+    """cv2's reader corrupted memory on these (SIGSEGV/SIGABRT about 1 run in 5): load 20 times in
+    a child process, which must survive, and each load must be one ConfigError naming the node."""
+    path = _write_and_edit(ideal_rig, tmp_path, lambda t: _replace_node(t, "R", body))
+    code = ("import sys\nfrom vishap import ConfigError\nfrom vishap.vision.rig import StereoRig\n"
+            "for _ in range(20):\n    try:\n        StereoRig.load(sys.argv[1])\n        raise SystemExit('accepted')\n"
+            "    except ConfigError as e:\n        msg = str(e)\nprint(msg)\n")
+    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, (out.returncode, out.stderr[-500:])
+    assert what in out.stdout and "rig.yaml" in out.stdout
+
+
+@pytest.mark.parametrize("junk", ["\x07junk", ": : :", "abc", "[1,2", "K1: !!opencv-matrix\n  rows: 3\n junk ]]]"])
+def test_junk_after_the_header_is_a_config_error(tmp_path, junk):
+    path = tmp_path / "rig.yaml"
+    path.write_text(f"%YAML:1.0\n---\n{junk}\n")
+    with pytest.raises(ConfigError, match="rig.yaml"):
+        StereoRig.load(path)
+
+
+def _scale_matrix_value(text, name, index, value):
+    m = re.search(rf"^{name}: !!opencv-matrix.*?data: \[(.*?)\]", text, flags=re.S | re.M)
+    vals = [v.strip() for v in m.group(1).split(",")]
+    vals[index] = value
+    return text[: m.start(1)] + " " + ", ".join(vals) + " " + text[m.end(1):]
+
+
+@pytest.mark.parametrize(
+    "name, index, value, field",
+    [
+        ("K1", 0, "1e300", "K1"),  # a 1e300 px focal length
+        ("K2", 4, "1e-300", "K2"),
+        ("K1", 2, "1e12", "K1"),  # principal point far outside the image
+        ("D1", 0, "1e200", "D1"),
+        ("T", 0, "-60.0", "T"),  # millimetres, not metres
+        ("R1", 1, "0.2", "R1"),  # a skewed R1: no longer a rotation
+        ("Q", 11, ".nan", "Q"),
+        ("P2", 0, "1e300", "P2"),
+    ],
+)
+def test_out_of_range_values_are_refused_with_the_field(ideal_rig, tmp_path, name, index, value, field):
+    path = _write_and_edit(ideal_rig, tmp_path, lambda t: _scale_matrix_value(t, name, index, value))
+    with pytest.raises(ConfigError) as exc:
+        StereoRig.load(path)
+    assert exc.value.field.split(".")[0] == field and "rig.yaml" in str(exc.value)
+
+
+def test_rectification_that_does_not_belong_to_the_rig_is_refused(distorted_rig, tmp_path):
+    from vishap._core.pose import rot_y
+
+    def rotate_R1(t):  # still a proper rotation, but not the one rectifying these cameras
+        R1 = rot_y(0.05) @ distorted_rig.R1
+        body = "!!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ " + ", ".join(repr(float(x)) for x in R1.ravel()) + " ]"
+        return _replace_node(t, "R1", body)
+
+    path = _write_and_edit(distorted_rig, tmp_path, rotate_R1)
+    with pytest.raises(ConfigError, match="R2·R") as exc:
+        StereoRig.load(path)
+    assert exc.value.field == "R1"
+    zeros = "!!opencv-matrix\n   rows: 4\n   cols: 4\n   dt: d\n   data: [ " + ", ".join(["0."] * 16) + " ]"
+    path = _write_and_edit(distorted_rig, tmp_path, lambda t: _replace_node(t, "Q", zeros))
+    with pytest.raises(ConfigError, match="P1 and P2") as exc:
+        StereoRig.load(path)
+    assert exc.value.field == "Q"
+
+
+def test_file_carries_image_size_rms_and_board(distorted_rig, tmp_path):
+    import stat
+
+    rig = distorted_rig.with_calibration_info(rms_px=0.31, board="9x6 chessboard, 25 mm squares")
+    path = rig.save(tmp_path / "rig.yaml")
+    text = path.read_text()
+    assert "image_size: [ 640, 480 ]" in text and "rms_px: 0.31" in text and "board:" in text
+    back = StereoRig.load(path)
+    assert back.equals(rig) and back.rms_px == 0.31 and back.board.startswith("9x6")
+    assert back.summary()["rms_px"] == 0.31
+    assert stat.S_IMODE(path.stat().st_mode) & 0o040  # group-readable, not 0600
+
+
+def _opencv_sample_files(rig) -> tuple[str, str]:
+    """The two files OpenCV's stereo_calib sample writes (intrinsics.yml, extrinsics.yml)."""
+    def mat(name, a):
+        a = np.atleast_2d(a)
+        return (f"{name}: !!opencv-matrix\n   rows: {a.shape[0]}\n   cols: {a.shape[1]}\n   dt: d\n   data: [ "
+                + ", ".join(repr(float(x)) for x in a.ravel()) + " ]\n")
+
+    intr = "%YAML:1.0\n---\n" + mat("M1", rig.K_left) + mat("D1", rig.dist_left) + mat("M2", rig.K_right) \
+        + mat("D2", rig.dist_right)
+    extr = "%YAML:1.0\n---\n" + "".join(mat(k, getattr(rig, k)) for k in ("R", "T", "R1", "R2", "P1", "P2", "Q"))
+    return intr, extr
+
+
+def test_opencv_sample_key_names_are_read(distorted_rig, tmp_path):
+    intr, extr = _opencv_sample_files(distorted_rig)
+    path = tmp_path / "rig.yml"
+    path.write_text(intr + extr)  # the sample's two files, concatenated
+    with pytest.raises(ConfigError, match="image_size.*stereo_calib") as exc:
+        StereoRig.load(path)
+    assert exc.value.field == "image_size"
+    path.write_text(intr + "image_size: [ 640, 480 ]\n" + extr)
+    back = StereoRig.load(path)
+    assert back.equals(distorted_rig)
+    path.write_text(intr.replace("M1:", "K1:") + intr.split("---\n")[1].split("D1:")[0] + extr
+                    + "image_size: [ 640, 480 ]\n")
+    with pytest.raises(ConfigError, match="twice|both"):
+        StereoRig.load(path)
+
+
+def test_unknown_node_and_xml_are_named(ideal_rig, tmp_path):
+    path = _write_and_edit(ideal_rig, tmp_path, lambda t: t + "K_1: 3\n")
+    with pytest.raises(ConfigError, match="unknown node") as exc:
+        StereoRig.load(path)
+    assert exc.value.field == "K_1"
+    path.write_text('<?xml version="1.0"?>\n<opencv_storage></opencv_storage>\n')
+    with pytest.raises(ConfigError, match="XML"):
+        StereoRig.load(path)

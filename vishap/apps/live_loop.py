@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vishap._core.output import to_jsonable
+from vishap._core.results import to_jsonable
 from vishap.apps.config import DemoConfig
 from vishap.apps.cycle import Finger
 from vishap.apps.log import SignalLog, write_frame_png

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from vishap.apps.metrics import linear_fit
-from vishap._core.output import new_figure, save_figure
+from vishap._core.results import new_figure, save_figure
 
 __all__ = ["plot_force_depth", "plot_timeline", "plot_spectrogram", "plot_contact_states"]
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from vishap.apps.metrics import approaches, force_depth_r2, tip3d_errors_mm
-from vishap._core.output import to_jsonable
+from vishap._core.results import to_jsonable
 
 __all__ = ["summarize", "write_plots", "write_outputs"]
 

@@ -1,4 +1,4 @@
-"""Helpers every benchmark uses: robust timing; JSON conversion and chart output from :mod:`vishap._core.output`."""
+"""Helpers every benchmark uses: robust timing; JSON conversion and chart output from :mod:`vishap._core.results`."""
 from __future__ import annotations
 
 import time
@@ -6,7 +6,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from vishap._core.output import machine_info, new_figure, save_figure, to_jsonable
+from vishap._core.results import machine_info, new_figure, save_figure, to_jsonable
 
 __all__ = ["time_calls", "median_us", "to_jsonable", "machine_info", "new_figure", "save_figure"]
 

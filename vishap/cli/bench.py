@@ -1,8 +1,11 @@
 """``vishap bench NAME``: benchmarks that write a JSON record and charts.
 
 Each benchmark is a module ``vishap/bench/NAME.py`` exposing ``HELP`` (one line),
-``add_arguments(parser)`` and ``run(args) -> dict``. ``run`` writes its charts into ``args.out``;
-this command prints the returned record as one JSON object and saves it as ``OUT/NAME.json``.
+``add_arguments(parser)`` and ``run(args) -> dict`` (and optionally ``summary_lines(record)`` for
+the terminal). ``run`` writes its charts into ``args.out``, which is a temporary folder renamed to
+``--out`` when the benchmark has finished (:func:`vishap._core.output.output_dir`); this command
+saves the record as ``OUT/NAME.json`` and prints a summary (the JSON with ``--json`` or when
+stdout is not a terminal).
 """
 from __future__ import annotations
 
@@ -11,6 +14,8 @@ import importlib
 import json
 import pkgutil
 from pathlib import Path
+
+from vishap.cli import add_json_flag, add_overwrite_flag, record_lines, report
 
 
 def _bench_modules() -> dict[str, object]:
@@ -34,20 +39,30 @@ def register(sub: argparse._SubParsersAction) -> None:
     bs = p.add_subparsers(dest="bench_name", metavar="NAME", required=True)
     for name, mod in mods.items():
         b = bs.add_parser(name, help=getattr(mod, "HELP", ""))
-        b.add_argument("--out", default=None, help=f"output folder (default out/bench/{name})")
+        b.add_argument("--out", default=None,
+                       help=f"output folder, written whole at the end; must not exist or be empty "
+                            f"(default out/bench/{name})")
+        add_overwrite_flag(b)
+        add_json_flag(b)
         mod.add_arguments(b)
         b.set_defaults(func=_run, bench_module=mod)
 
 
 def _run(args: argparse.Namespace) -> int:
+    from vishap._core.config import write_atomic
+    from vishap._core.output import output_dir
     from vishap.bench._common import to_jsonable
 
-    if args.out is None:
-        args.out = str(Path("out") / "bench" / args.bench_name)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    record = args.bench_module.run(args)
-    text = json.dumps(to_jsonable(record))
-    (out / f"{args.bench_name}.json").write_text(text + "\n")
-    print(text)
+    final = Path(args.out if args.out is not None else Path("out") / "bench" / args.bench_name)
+    with output_dir(final, overwrite=args.overwrite) as folder:
+        args.out = str(folder.path)
+        record = to_jsonable(args.bench_module.run(args))
+        # the record names files where they will be, not in the temporary folder
+        record = json.loads(folder.relocate(json.dumps(record)))
+        write_atomic(folder.path / f"{args.bench_name}.json", json.dumps(record) + "\n")
+    args.out = str(folder.final)
+    lines_of = getattr(args.bench_module, "summary_lines", None)
+    lines = [f"bench {args.bench_name}: record in {folder.final / (args.bench_name + '.json')}"]
+    lines += lines_of(record) if lines_of is not None else record_lines(record)
+    report(args, record, lines)
     return 0

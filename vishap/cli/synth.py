@@ -3,7 +3,8 @@ sequence with exact ground truth (issue 3; layout in :mod:`vishap.sim.writer`)."
 from __future__ import annotations
 
 import argparse
-import json
+
+from vishap.cli import add_json_flag, report
 
 
 def _resolution(text: str) -> tuple[int, int]:
@@ -50,6 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--msaa", type=int, default=0, help="anti-aliasing samples (0, 2, 4, 8; labels then cost a pass)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_scale_options(p)
+    add_json_flag(p)
     p.set_defaults(func=_run)
 
 
@@ -72,9 +74,13 @@ def _run(args: argparse.Namespace) -> int:
 
     seq = SyntheticSequence(out)
     gt = seq.gt
-    print(json.dumps({"out": str(out), "frames": len(seq), "scene": str(gt["scene"]), "seed": int(gt["seed"]),
-                      "background": str(gt["background"]), "tip_visible_left": float(gt["tip_visible_left"].mean()),
-                      "tip_visible_right": float(gt["tip_visible_right"].mean())}))
+    rec = {"out": str(out), "frames": len(seq), "scene": str(gt["scene"]), "seed": int(gt["seed"]),
+           "background": str(gt["background"]), "tip_visible_left": float(gt["tip_visible_left"].mean()),
+           "tip_visible_right": float(gt["tip_visible_right"].mean())}
+    report(args, rec, [f"wrote {rec['frames']} frames of scene {rec['scene']} (seed {rec['seed']}, {rec['background']} "
+                       f"background) to {out}",
+                       f"  fingertip visible in {rec['tip_visible_left']:.0%} of left, {rec['tip_visible_right']:.0%} "
+                       "of right frames; ground truth in gt.npz"])
     return 0
 
 

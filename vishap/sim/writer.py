@@ -8,24 +8,24 @@
     OUT/gt.npz                        ground truth (datasets/synthetic/README.md documents every array)
 
 Everything is checked before the first pixel is rendered; the sequence is written into a hidden
-temporary folder beside ``OUT`` and renamed into place at the end, so a failure (bad input, a full
-disk, an interrupt) leaves no half-written folder. The bytes depend only on the inputs: PNGs are
+temporary folder beside ``OUT`` and renamed into place at the end (:mod:`vishap._core.output`), so a
+failure (bad input, a full disk, Ctrl-C, SIGTERM) leaves no half-written folder and removes nothing
+it did not create. The bytes depend only on the inputs: PNGs are
 written with fixed settings and ``gt.npz`` is a zip whose entries carry a fixed date.
 """
 from __future__ import annotations
 
 import io
-import shutil
+import zipfile
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
-import tempfile
-import zipfile
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from vishap._core.errors import ConfigError
+from vishap._core.output import output_dir
 from vishap.sim.sequence import SequenceSpec, constants, make_renderer, prepare, render_frames
 
 __all__ = ["write_sequence", "save_npz_deterministic", "frame_name"]
@@ -57,58 +57,20 @@ def _write_png(path: Path, img: np.ndarray) -> None:
         raise OSError(f"cv2.imwrite failed for {path}")
 
 
-def _first_missing_ancestor(p: Path) -> Path | None:
-    missing = None
-    for q in [p, *p.parents]:
-        if q.exists():
-            break
-        missing = q
-    return missing
-
-
 def write_sequence(out: str | Path, spec: SequenceSpec, *, overwrite: bool = False, progress: bool = False) -> Path:
     """Render ``spec`` and write it to the folder ``out`` (see the module docstring); returns ``out``.
 
     ``out`` must not exist or be empty, unless ``overwrite``. Raises :class:`ConfigError` with one
-    clear message for bad input; nothing is left on disk in that case.
+    clear message for bad input; nothing is left on disk in that case, and nothing this call did
+    not create is removed (:func:`vishap._core.output.output_dir`).
     """
     p = prepare(spec)  # unknown scene / trajectory, bad frames, lighting, … fail here
-    out = Path(out).absolute()
-    if out.exists():
-        if not out.is_dir():
-            raise ConfigError("output exists and is not a folder", file=out)
-        if any(out.iterdir()) and not overwrite:
-            raise ConfigError("output folder exists and is not empty (pass --overwrite to replace it)", file=out)
-    created = _first_missing_ancestor(out.parent)
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
-    except OSError as exc:
-        _remove(created)
-        raise ConfigError(f"cannot write the output folder ({exc.strerror or exc})", file=out) from None
-    try:
-        _write_into(tmp, p, progress)
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
-            out.rename(old / "x")
-            tmp.rename(out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            tmp.rename(out)
-    except OSError as exc:
-        shutil.rmtree(tmp, ignore_errors=True)
-        _remove(created)
-        raise ConfigError(f"cannot write the sequence ({exc.strerror or exc})", file=out) from None
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        _remove(created)
-        raise
-    return out
-
-
-def _remove(p: Path | None) -> None:
-    if p is not None and p.exists():
-        shutil.rmtree(p, ignore_errors=True)
+    with output_dir(out, overwrite=overwrite) as folder:
+        try:
+            _write_into(folder.path, p, progress)
+        except OSError as exc:
+            raise ConfigError(f"cannot write the sequence ({exc.strerror or exc})", file=folder.final) from None
+    return folder.final
 
 
 def _write_into(folder: Path, p, progress: bool) -> None:

@@ -5,10 +5,15 @@ y down, z forward, metres). The right camera sees ``p_right = R @ p_cam + T``; t
 ``|T|``. Pixels are float ``(u, v)`` with the centre of the top-left pixel at (0, 0).
 Distortion follows OpenCV's model (k1, k2, p1, p2[, k3[, k4, k5, k6]]).
 
-Files are OpenCV FileStorage YAML (what ``cv2.FileStorage`` reads and writes) with the nodes
-``image_width``, ``image_height``, ``K1``, ``D1``, ``K2``, ``D2``, ``R``, ``T`` and the
-rectification ``R1``, ``R2``, ``P1``, ``P2``, ``Q`` (all required in a file; the constructor
-computes the rectification with ``cv2.stereoRectify`` when it is not given).
+Files are OpenCV FileStorage YAML (what ``cv2.FileStorage`` writes) with the nodes
+``image_size`` (``[width, height]``; also written as OpenCV's ``image_width``, ``image_height``), ``K1``,
+``D1``, ``K2``, ``D2``, ``R``, ``T`` and the rectification ``R1``, ``R2``, ``P1``, ``P2``, ``Q``
+(all required in a file; the constructor computes the rectification with ``cv2.stereoRectify``
+when it is not given), and optionally ``rms_px`` (the stereo calibration's RMS reprojection error)
+and ``board`` (the calibration target). The names OpenCV's stereo sample writes, ``M1``/``M2`` for
+``K1``/``K2``, are read as well, also from its two files concatenated. Files are parsed by
+:mod:`vishap._core.filestorage`, never by cv2's reader, and every value is checked for range and
+consistency (rotations, ``R2·R = R1``, ``Q`` agreeing with ``P1``/``P2``) before use.
 """
 from __future__ import annotations
 
@@ -23,13 +28,22 @@ import numpy as np
 
 from vishap._core.check import as_array, as_points
 from vishap._core.config import write_atomic
-from vishap._core.errors import ConfigError
+from vishap._core.filestorage import read_filestorage
+from vishap._core.errors import ConfigError, VishapError
 from vishap._core.pose import is_rotation
 
 __all__ = ["StereoRig"]
 
 _DIST_LENGTHS = (4, 5, 8, 12, 14)
 _RECT_FIELDS = {"R1": (3, 3), "R2": (3, 3), "P1": (3, 4), "P2": (3, 4), "Q": (4, 4)}
+#: File nodes: ours first, then the names OpenCV's stereo_calib sample writes.
+_MATRIX_NODES = {"K1": ("K1", "M1"), "D1": ("D1",), "K2": ("K2", "M2"), "D2": ("D2",), "R": ("R",), "T": ("T",)}
+_OTHER_NODES = {"image_size", "image_width", "image_height", "rms_px", "board"}
+_MAX_IMAGE_SIDE = 100_000  # pixels
+_FOCAL_RANGE = (0.01, 1000.0)  # focal length / longer image side: fields of view of 179.4° … 0.06°
+_MAX_DISTORTION = 1e4  # |coefficient|; real rational models stay below a few hundred
+_BASELINE_RANGE_M = (1e-4, 10.0)
+_ROT_TOL = 1e-6
 
 
 def _distort_project(p: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
@@ -74,32 +88,78 @@ class StereoRig:
     P1: np.ndarray | None = None
     P2: np.ndarray | None = None
     Q: np.ndarray | None = None
+    rms_px: float | None = None
+    board: str | None = None
     _maps: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
-        w, h = (int(s) for s in self.image_size)
-        if w <= 0 or h <= 0:
-            raise ConfigError(f"image size must be positive, got {self.image_size}", field="image_size")
+        try:
+            w, h = (int(s) for s in self.image_size)
+        except (TypeError, ValueError, OverflowError):
+            raise ConfigError(f"expected (width, height), got {self.image_size!r}", field="image_size") from None
+        if not (0 < w <= _MAX_IMAGE_SIDE and 0 < h <= _MAX_IMAGE_SIDE):
+            raise ConfigError(f"image size must be in 1..{_MAX_IMAGE_SIDE} pixels, got {self.image_size}",
+                              field="image_size")
         self.image_size = (w, h)
-        self.K_left = _check_K(self.K_left, "K1")
-        self.K_right = _check_K(self.K_right, "K2")
+        self.K_left = _check_K(self.K_left, "K1", self.image_size)
+        self.K_right = _check_K(self.K_right, "K2", self.image_size)
         self.dist_left = _check_dist(self.dist_left, "D1")
         self.dist_right = _check_dist(self.dist_right, "D2")
-        self.R = as_array(self.R, (3, 3), "R")
-        if not is_rotation(self.R, tol=1e-6):
-            raise ConfigError("not a proper rotation (orthonormal, det +1)", field="R")
-        self.T = as_array(np.asarray(self.T, dtype=np.float64).reshape(-1), (3,), "T")
-        if np.linalg.norm(self.T) <= 0:
-            raise ConfigError("baseline is zero", field="T")
+        self.R = _check_rotation(self.R, "R")
+        self.T = _as_field(lambda: as_array(np.asarray(self.T, dtype=np.float64).reshape(-1), (3,), "T"), "T")
+        b = float(np.linalg.norm(self.T))
+        if not (_BASELINE_RANGE_M[0] <= b <= _BASELINE_RANGE_M[1]):
+            raise ConfigError(f"baseline |T| = {b:.6g} m, expected {_BASELINE_RANGE_M[0]}..{_BASELINE_RANGE_M[1]} m "
+                              "(T is in metres)" if b > 0 else "baseline is zero", field="T")
+        if self.rms_px is not None:
+            self.rms_px = float(self.rms_px)
+            if not (math.isfinite(self.rms_px) and 0.0 <= self.rms_px < 1e3):
+                raise ConfigError(f"expected a reprojection error in [0, 1000) pixels, got {self.rms_px}",
+                                  field="rms_px")
+        if self.board is not None and not isinstance(self.board, str):
+            raise ConfigError(f"expected text such as '9x6 chessboard 25 mm', got {self.board!r}", field="board")
         given = [getattr(self, k) is not None for k in _RECT_FIELDS]
         if any(given) and not all(given):
             missing = [k for k, g in zip(_RECT_FIELDS, given) if not g]
             raise ConfigError(f"rectification is partial: missing {missing}", field=missing[0])
         if all(given):
             for k, shape in _RECT_FIELDS.items():
-                setattr(self, k, as_array(getattr(self, k), shape, k))
+                setattr(self, k, _as_field(lambda: as_array(getattr(self, k), shape, k), k))
+            self._check_rectification()
         else:
             self._rectify()
+
+    def _check_rectification(self) -> None:
+        """A given rectification must be the one of these cameras: ``R1``, ``R2`` proper rotations
+        with ``R2·R = R1``, ``P1``/``P2`` horizontal rectified projections, ``Q`` built from them."""
+        _check_rotation(self.R1, "R1")
+        _check_rotation(self.R2, "R2")
+        if not np.allclose(self.R2 @ self.R, self.R1, atol=1e-5):
+            raise ConfigError("R1 and R2 do not rectify this rig (R2·R must equal R1)", field="R1")
+        for name in ("P1", "P2"):
+            P = getattr(self, name)
+            f = P[0, 0]
+            lo, hi = (r * max(self.image_size) for r in _FOCAL_RANGE)
+            if not (lo <= f <= hi) or not np.isclose(P[1, 1], f, rtol=1e-9) or P[0, 1] != 0 or P[1, 0] != 0 \
+                    or not np.array_equal(P[2], [0.0, 0.0, 1.0, 0.0]):
+                raise ConfigError("not a rectified projection [[f 0 cx tx] [0 f cy 0] [0 0 1 0]] with a plausible f",
+                                  field=name)
+        if np.any(self.P1[:, 3] != 0) or self.P2[1, 3] != 0 or self.P2[0, 3] == 0:
+            raise ConfigError("expected a horizontal rectification: P1 without translation, P2 with tx only",
+                              field="P2")
+        f, cx1, cy1 = self.P1[0, 0], self.P1[0, 2], self.P1[1, 2]
+        tx = self.P2[0, 3] / self.P2[0, 0]
+        if not np.allclose(self.P2[:2, :3], self.P1[:2, :3] + [[0, 0, self.P2[0, 2] - cx1], [0, 0, 0]], rtol=1e-9):
+            raise ConfigError("P1 and P2 differ in focal length or row centre", field="P2")
+        Q = np.array([[1.0, 0.0, 0.0, -cx1], [0.0, 1.0, 0.0, -cy1], [0.0, 0.0, 0.0, f],
+                      [0.0, 0.0, -1.0 / tx, (cx1 - self.P2[0, 2]) / tx]])
+        if not np.allclose(self.Q, Q, rtol=1e-6, atol=1e-9):
+            raise ConfigError("does not agree with P1 and P2 (expected cv2.stereoRectify's Q)", field="Q")
+
+    def with_calibration_info(self, *, rms_px: float | None = None, board: str | None = None) -> "StereoRig":
+        """A copy that also records the calibration's RMS reprojection error and its board."""
+        return StereoRig(self.image_size, self.K_left, self.dist_left, self.K_right, self.dist_right, self.R, self.T,
+                         self.R1, self.R2, self.P1, self.P2, self.Q, rms_px=rms_px, board=board)
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -280,10 +340,19 @@ class StereoRig:
     # ------------------------------------------------------------------ files
     def to_filestorage_string(self) -> str:
         fs = cv2.FileStorage(".yaml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
+        fs.startWriteStruct("image_size", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
+        for s in self.image_size:
+            fs.write("", int(s))
+        fs.endWriteStruct()
+        # the names OpenCV's calibration sample writes, which its tools read
         fs.write("image_width", int(self.width))
         fs.write("image_height", int(self.height))
         for name, arr in self._arrays().items():
             fs.write(name, np.ascontiguousarray(arr, dtype=np.float64))
+        if self.rms_px is not None:
+            fs.write("rms_px", float(self.rms_px))
+        if self.board is not None:
+            fs.write("board", str(self.board))
         return fs.releaseAndGetString()
 
     def save(self, path: str | os.PathLike) -> Path:
@@ -294,41 +363,40 @@ class StereoRig:
     def load(cls, path: str | os.PathLike) -> "StereoRig":
         """Read a rig file; any problem raises one :class:`ConfigError` naming the file and field."""
         path = Path(path)
-        if not path.is_file():
-            raise ConfigError("rig file not found", file=path)
-        try:
-            head = path.read_bytes()[:64]
-        except OSError as exc:
-            raise ConfigError(f"cannot read rig file ({exc})", file=path) from None
-        if not head.lstrip().startswith(b"%YAML") and not head.lstrip().startswith(b"<?xml"):
-            raise ConfigError("not an OpenCV FileStorage file (expected a '%YAML:1.0' header)", file=path)
-        try:
-            fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-            ok = fs.isOpened()
-        except cv2.error as exc:
-            msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "parse error"
-            raise ConfigError(f"cannot parse rig file ({msg})", file=path) from None
-        if not ok:
-            raise ConfigError("cannot open rig file", file=path)
-        try:
-            w = _read_int(fs, "image_width", path)
-            h = _read_int(fs, "image_height", path)
-            mats = {}
-            for name, shape in (("K1", (3, 3)), ("D1", None), ("K2", (3, 3)), ("D2", None), ("R", (3, 3)), ("T", (3,))):
-                mats[name] = _read_mat(fs, name, shape, path)
-            # rectification is required in a file (a truncated file loses it first)
-            rect = {name: _read_mat(fs, name, shape, path) for name, shape in _RECT_FIELDS.items()}
-        finally:
-            fs.release()
+        nodes = read_filestorage(path)
+        unknown = sorted(set(nodes) - _OTHER_NODES - set(_RECT_FIELDS) - {n for v in _MATRIX_NODES.values() for n in v})
+        if unknown:
+            raise ConfigError("unknown node; a rig file holds image_size, K1 D1 K2 D2 R T R1 R2 P1 P2 Q "
+                              "(M1/M2 for K1/K2), rms_px, board", file=path, field=unknown[0])
+        size = _read_size(nodes, path)
+        mats = {}
+        for name, aliases in _MATRIX_NODES.items():
+            present = [a for a in aliases if a in nodes]
+            if len(present) > 1:
+                raise ConfigError(f"both {present[0]} and {present[1]} are given", file=path, field=present[1])
+            if not present:
+                raise ConfigError("missing", file=path, field=name)
+            mats[name] = _node_matrix(nodes, present[0], path)
+        # rectification is required in a file (a truncated file loses it first)
+        rect = {}
+        for name in _RECT_FIELDS:
+            if name not in nodes:
+                raise ConfigError("missing", file=path, field=name)
+            rect[name] = _node_matrix(nodes, name, path)
+        extra = {}
+        if "rms_px" in nodes:
+            extra["rms_px"] = nodes["rms_px"]
+            if isinstance(extra["rms_px"], bool) or not isinstance(extra["rms_px"], (int, float)):
+                raise ConfigError(f"expected a number of pixels, got {extra['rms_px']!r}", file=path, field="rms_px")
+        if "board" in nodes:
+            extra["board"] = nodes["board"]
         try:
             return cls(
-                image_size=(w, h), K_left=mats["K1"], dist_left=mats["D1"], K_right=mats["K2"],
-                dist_right=mats["D2"], R=mats["R"], T=mats["T"], **rect,
+                image_size=size, K_left=mats["K1"], dist_left=mats["D1"], K_right=mats["K2"],
+                dist_right=mats["D2"], R=mats["R"], T=mats["T"], **rect, **extra,
             )
         except ConfigError as exc:
             raise ConfigError(exc.reason, file=path, field=exc.field) from None
-        except Exception as exc:  # shape checks from vishap._core.check
-            raise ConfigError(str(exc), file=path) from None
 
     def _arrays(self) -> dict[str, np.ndarray]:
         return {
@@ -342,7 +410,7 @@ class StereoRig:
         if self.image_size != other.image_size:
             return False
         a, b = self._arrays(), other._arrays()
-        return all(np.array_equal(a[k], b[k]) for k in a)
+        return all(np.array_equal(a[k], b[k]) for k in a) and (self.rms_px, self.board) == (other.rms_px, other.board)
 
     def summary(self) -> dict:
         """A JSON-ready description of the rig."""
@@ -354,52 +422,83 @@ class StereoRig:
             "rectified_fx_px": self.rectified_fx_px,
             "rectified_baseline_m": self.rectified_baseline_m,
             "distortion": bool(np.any(self.dist_left) or np.any(self.dist_right)),
+            "rms_px": self.rms_px,
+            "board": self.board,
         }
 
 
-def _check_K(K, name: str) -> np.ndarray:
-    K = as_array(K, (3, 3), name)
-    if K[0, 0] <= 0 or K[1, 1] <= 0 or not np.allclose(K[2], [0, 0, 1]) or K[1, 0] != 0:
+def _as_field(make, name: str) -> np.ndarray:
+    """Run a shape check, re-raising its error as a ConfigError on ``name``."""
+    try:
+        return make()
+    except ConfigError:
+        raise
+    except VishapError as exc:
+        raise ConfigError(str(exc).removeprefix(f"{name}: "), field=name) from None
+
+
+def _check_rotation(R, name: str) -> np.ndarray:
+    R = _as_field(lambda: as_array(R, (3, 3), name), name)
+    if not is_rotation(R, tol=_ROT_TOL):
+        raise ConfigError("not a proper rotation (orthonormal, det +1)", field=name)
+    return R
+
+
+def _check_K(K, name: str, image_size: tuple[int, int]) -> np.ndarray:
+    K = _as_field(lambda: as_array(K, (3, 3), name), name)
+    if K[0, 0] <= 0 or K[1, 1] <= 0 or not np.array_equal(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0:
         raise ConfigError("not an intrinsic matrix (fx, fy > 0, last row [0 0 1])", field=name)
+    w, h = image_size
+    lo, hi = (r * max(w, h) for r in _FOCAL_RANGE)
+    if not (lo <= K[0, 0] <= hi and lo <= K[1, 1] <= hi):
+        raise ConfigError(f"focal lengths fx {K[0, 0]:.6g}, fy {K[1, 1]:.6g} px outside {lo:.6g}..{hi:.6g} px "
+                          f"for a {w}x{h} image", field=name)
+    if not (-w <= K[0, 2] <= 2 * w and -h <= K[1, 2] <= 2 * h) or abs(K[0, 1]) > K[0, 0]:
+        raise ConfigError(f"principal point ({K[0, 2]:.6g}, {K[1, 2]:.6g}) or skew {K[0, 1]:.6g} implausible "
+                          f"for a {w}x{h} image", field=name)
     return K
 
 
 def _check_dist(d, name: str) -> np.ndarray:
-    d = np.asarray(d, dtype=np.float64).reshape(-1)
+    d = _as_field(lambda: np.asarray(d, dtype=np.float64).reshape(-1), name)
     if d.size not in _DIST_LENGTHS:
         raise ConfigError(f"expected {', '.join(map(str, _DIST_LENGTHS))} coefficients, got {d.size}", field=name)
     if not np.all(np.isfinite(d)):
         raise ConfigError("contains NaN or inf", field=name)
+    if np.any(np.abs(d) > _MAX_DISTORTION):
+        raise ConfigError(f"coefficient beyond ±{_MAX_DISTORTION:g}", field=name)
     return d
 
 
-def _read_int(fs: cv2.FileStorage, name: str, path: Path) -> int:
-    node = fs.getNode(name)
-    if node.empty() or node.isNone():
-        raise ConfigError("missing", file=path, field=name)
-    if not node.isInt():
-        raise ConfigError("expected an integer", file=path, field=name)
-    return int(node.real())
+def _read_size(nodes: dict, path: Path) -> tuple[int, int]:
+    def as_int(v, field):
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise ConfigError(f"expected an integer, got {v!r}", file=path, field=field)
+        return v
+
+    size = None
+    if "image_size" in nodes:
+        v = nodes["image_size"]
+        if not isinstance(v, list) or len(v) != 2:
+            raise ConfigError(f"expected [width, height], got {v!r}", file=path, field="image_size")
+        size = as_int(v[0], "image_size"), as_int(v[1], "image_size")
+        if "image_width" not in nodes and "image_height" not in nodes:
+            return size
+    elif "image_width" not in nodes and "image_height" not in nodes:
+        raise ConfigError("missing: add 'image_size: [width, height]' (OpenCV's stereo_calib sample does not "
+                          "write the image size)", file=path, field="image_size")
+    for k in ("image_width", "image_height"):
+        if k not in nodes:
+            raise ConfigError("missing", file=path, field=k)
+    wh = as_int(nodes["image_width"], "image_width"), as_int(nodes["image_height"], "image_height")
+    if size is not None and size != wh:
+        raise ConfigError(f"image_size {list(size)} disagrees with image_width, image_height {list(wh)}",
+                          file=path, field="image_size")
+    return wh
 
 
-def _read_mat(fs: cv2.FileStorage, name: str, shape, path: Path) -> np.ndarray:
-    node = fs.getNode(name)
-    if node.empty() or node.isNone():
-        raise ConfigError("missing", file=path, field=name)
-    if not node.isMap():
+def _node_matrix(nodes: dict, name: str, path: Path) -> np.ndarray:
+    v = nodes[name]
+    if not isinstance(v, np.ndarray):
         raise ConfigError("expected an !!opencv-matrix", file=path, field=name)
-    try:
-        m = node.mat()
-    except cv2.error:
-        m = None
-    if m is None:
-        raise ConfigError("expected an !!opencv-matrix with rows, cols, dt and data", file=path, field=name)
-    m = np.asarray(m, dtype=np.float64)
-    if shape is None:
-        return m.reshape(-1)
-    if m.size != int(np.prod(shape)):
-        raise ConfigError(f"expected {shape} values, got matrix of shape {m.shape}", file=path, field=name)
-    m = m.reshape(shape)
-    if not np.all(np.isfinite(m)):
-        raise ConfigError("contains NaN or inf", file=path, field=name)
-    return m
+    return v
