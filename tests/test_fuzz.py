@@ -67,8 +67,6 @@ def test_loader_gives_the_object_or_one_vishap_error(name, ops, tmp_path_factory
         assert not fuzz._file_has_nonfinite(data), f"{name} accepted a file holding NaN/inf: {data[:300]!r}"
 
 
-@pytest.mark.xfail(strict=True, reason="vishap/sim/scene_objects.py reads by hand: float('nan'), missing keys and text "
-                          "escape as ValueError/KeyError or are accepted (issue 17; fix belongs there)")
 @settings(max_examples=300, **_KNOWN)
 @given(ops=_ops)
 def test_synthesis_scene_loader(ops, tmp_path_factory):
