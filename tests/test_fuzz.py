@@ -140,8 +140,6 @@ _hostile = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_
 _vec = st.tuples(_hostile, _hostile, _hostile)
 
 
-@pytest.mark.xfail(strict=True, reason="vishap/world/force_laws.py saturate: an overflowing finite force becomes 0, "
-                                       "a NaN/negative/inf limit lets the force through (issue 17)")
 @settings(max_examples=400, **_KNOWN)
 @given(F=_vec, limit=st.one_of(st.just(8.5), _hostile))
 def test_saturate(F, limit):
@@ -161,16 +159,12 @@ def test_target_guard(inputs, key, bad):
     assert fuzz.check_guard(cfg, inputs) is None
 
 
-@pytest.mark.xfail(strict=True, reason="vishap/robot/controller.py Controller.compute: an overflow sets F_cmd = 0, "
-                                       "gravity compensation included (issue 17)")
 @settings(max_examples=300, **_KNOWN)
 @given(q=st.tuples(*[st.floats(-0.5, 0.5)] * 3), target=_vec, force=_vec)
 def test_controller(q, target, force):
     assert fuzz.check_controller(q, (0.0, 0.0, 0.0), target, force) is None
 
 
-@pytest.mark.xfail(strict=True, reason="vishap/robot/servo.py ServoLoop.tick: a NaN target from the first tick "
-                                       "drives the arm away instead of holding (issue 17)")
 @settings(max_examples=5, **_KNOWN)
 @given(target=_vec.filter(lambda v: not all(map(math.isfinite, v))))
 def test_servo_holds_on_a_bad_first_target(target):

@@ -232,7 +232,7 @@ def check_saturate(F, limit: float) -> str | None:
         return None
     if not np.all(np.isfinite(out)):
         return f"saturate({F_in.tolist()}, {limit}) -> non-finite {np.asarray(out).tolist()}"
-    n = float(np.linalg.norm(out))
+    n = math.hypot(*(float(v) for v in out))  # np.linalg.norm overflows above ~1e154
     ok_limit = math.isfinite(limit) and limit > 0
     if not ok_limit:
         return f"saturate passed force |F|={n:.3g} through an invalid limit {limit}" if n > 0 else None

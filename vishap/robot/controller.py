@@ -344,6 +344,14 @@ class Controller:
         Fz += gz
         # limits: peak force, continuous force while hot
         n2 = Fx * Fx + Fy * Fy + Fz * Fz
+        if not isf(n2):  # overflow of finite inputs: keep the direction; no direction left: gravity only
+            if isf(Fx) and isf(Fy) and isf(Fz):
+                m = max(abs(Fx), abs(Fy), abs(Fz))
+                Fx, Fy, Fz = Fx / m * 1e3, Fy / m * 1e3, Fz / m * 1e3  # beyond any limit: saturated below
+            else:
+                self.n_faults += 1
+                Fx, Fy, Fz = gx, gy, gz
+            n2 = Fx * Fx + Fy * Fy + Fz * Fz
         flim = self._cont if self.heat > self._cont * self._cont else self._peak
         if n2 > flim * flim:
             sc = flim / math.sqrt(n2)
@@ -369,10 +377,11 @@ class Controller:
             if not self.saturated:
                 self.saturated = True
                 self.n_saturated += 1
-        if not isf(tau1 + tau2 + tau3):  # only reachable through overflow
+        if not isf(tau1 + tau2 + tau3):  # only reachable through overflow: keep gravity compensation alone
             self.n_faults += 1
-            self.F_cmd = (0.0, 0.0, 0.0)
-            return 0.0, 0.0, 0.0
+            Fx, Fy, Fz = gx, gy, gz
+            Fr = Fx * c1 + Fy * s1
+            tau1, tau2, tau3 = 0.0, ja * Fr + jc * Fz, jb * Fr + jd * Fz
         self.F_cmd = (Fx, Fy, Fz)
         return tau1, tau2, tau3
 

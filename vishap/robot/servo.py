@@ -20,6 +20,7 @@ stops being extrapolated after the horizon).
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -49,6 +50,7 @@ class TargetShaper:
 
     def reset(self) -> None:
         self.n_samples = 0
+        self.n_rejected = 0  # non-finite samples refused
         self._t1 = None  # capture time of the latest sample
         self._ta = None  # servo time at which it arrived
         self._x1 = None  # latest sample
@@ -91,6 +93,9 @@ class TargetShaper:
         ``t_sample`` changes; without it, when the value changes (captured "now").
         """
         x, y, z = float(X_d[0]), float(X_d[1]), float(X_d[2])
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+            self.n_rejected += 1  # no sample: the shaper keeps the last good one (before any, the servo holds)
+            return
         if t_sample is not None:
             if t_sample != self._last_ts:
                 self._last_ts = t_sample

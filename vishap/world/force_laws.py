@@ -29,12 +29,27 @@ DEFAULT_MAX_FORCE_N = 8.5  # PHANToM Premium 1.0 peak force (DESIGN.md); the dev
 
 
 def saturate(F: np.ndarray, max_force_n: float) -> np.ndarray:
-    """Scale ``F`` (in place) so that its norm does not exceed ``max_force_n``; NaN/inf become zero."""
-    n2 = F[0] * F[0] + F[1] * F[1] + F[2] * F[2]
-    if not math.isfinite(n2):
+    """Scale ``F`` (in place) so that its norm does not exceed ``max_force_n``.
+
+    A finite force of any size keeps its direction and ends at the limit; a force with a NaN
+    or infinite component (no direction) becomes zero, and so does any force under a limit that is
+    not a positive finite number (a broken limit must not let force through).
+    """
+    if not (max_force_n > 0.0 and math.isfinite(max_force_n)):
         F[:] = 0.0
-    elif n2 > max_force_n * max_force_n:
-        F *= max_force_n / math.sqrt(n2)
+        return F
+    n = math.hypot(F[0], F[1], F[2])
+    if not math.isfinite(n):  # a NaN/inf component (no direction), or a norm beyond the float range
+        if not (math.isfinite(F[0]) and math.isfinite(F[1]) and math.isfinite(F[2])):
+            F[:] = 0.0
+            return F
+        F /= max(abs(F[0]), abs(F[1]), abs(F[2]))
+        n = math.hypot(F[0], F[1], F[2])
+        F /= n
+        F *= max_force_n
+    elif n > max_force_n:
+        F /= n  # unit vector first: limit / n could underflow
+        F *= max_force_n
     return F
 
 
