@@ -64,7 +64,9 @@ class MonoDetector(Protocol):
 _REGISTRY: dict[str, tuple[Callable[..., MonoDetector], str]] = {}
 # modules whose import registers the project's own detectors (optional ones register only when
 # their extra is installed; their factories raise a ConfigError that says how to install it)
-_BUILTIN_MODULES: tuple[str, ...] = ()
+_BUILTIN_MODULES: tuple[str, ...] = (
+    "vishap.vision.learned",
+)
 
 
 def register_detector(name: str, factory: Callable[..., MonoDetector], help: str = "") -> None:
