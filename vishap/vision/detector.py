@@ -66,6 +66,7 @@ _REGISTRY: dict[str, tuple[Callable[..., MonoDetector], str]] = {}
 # their extra is installed; their factories raise a ConfigError that says how to install it)
 _BUILTIN_MODULES: tuple[str, ...] = (
     "vishap.vision.learned",
+    "vishap.vision.hybrid",
 )
 
 
