@@ -98,3 +98,21 @@ def test_a_jump_out_of_the_window_hands_the_frame_back_to_the_model(model):
     d = det.process(jumped, 1 / 30)
     assert d.found and d.mode.startswith("learned")
     np.testing.assert_allclose(d.cap_uv - first.cap_uv, [-90, 40], atol=6.0)
+
+
+def test_where_the_colour_fails_the_fingertip_patch_follows(model):
+    # a pale finger on a pale, textured wall: the window's skin mask breaks up, the cap fit fails
+    img, _ = real_photo("TI1K_IMAGE_0891.jpg")
+    det = hybrid(model)
+    shifts = np.array([[-1.7 * k, 1.1 * k] for k in range(8)])
+    dets = [det.process(cv2.warpAffine(img, np.float32([[1, 0, sx], [0, 1, sy]]), (640, 480),
+                                       borderMode=cv2.BORDER_REFLECT), k / 30) for k, (sx, sy) in enumerate(shifts)]
+    assert dets[0].mode == "learned"
+    assert [d.mode for d in dets[1:]] == ["tracked_template"] * 7
+    err = [np.hypot(*((d.cap_uv - dets[0].cap_uv) - s)) for d, s in zip(dets[1:], shifts[1:])]
+    assert max(err) < 0.5
+    # without the patch follower every frame goes back to the learned model
+    det = hybrid(model, template=False)
+    modes = [det.process(cv2.warpAffine(img, np.float32([[1, 0, sx], [0, 1, sy]]), (640, 480),
+                                        borderMode=cv2.BORDER_REFLECT), k / 30).mode for k, (sx, sy) in enumerate(shifts)]
+    assert all(m.startswith("learned") for m in modes)

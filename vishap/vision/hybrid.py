@@ -16,8 +16,12 @@ skin mask that holds and a start. The hybrid gives each the part it is good at:
    they replace the landmark estimate when they agree with it (within ``gate_radii`` cap radii).
 3. **follow** (fast, the frames between): the tracker predicts the cap, the window around the
    prediction is segmented with the learned colour model, the cap fit measures it, the tracker
-   updates. A fit that is missing, far from the prediction or pointing another way is a miss;
-   ``max_misses`` misses in a row hand the frame back to the learned model.
+   updates. Where the colour model cannot separate the finger from what lies behind it (pale
+   skin on a pale wall, motion blur) the fit fails; the fingertip's patch from the last *find*,
+   matched by normalised cross-correlation in the same window (sub-pixel peak), measures the cap
+   instead (mode ``tracked_template``). A frame where neither holds (no fit near the prediction
+   pointing the right way, no match above ``min_ncc``) is a miss; ``max_misses`` misses in a row
+   hand the frame back to the learned model.
 
 On independent photos (``reset()`` before each) every frame is a *find* + *refine*.
 ``tip_end_uv`` is the fitted cap's outermost point along the finger (cap centre − radius ×
@@ -37,7 +41,7 @@ from vishap.vision.detector import MonoDetection, register_detector
 from vishap.vision.fingertip import FingertipConfig, detect_fingertips
 from vishap.vision.learned import (
     INDEX_DIP, INDEX_MCP, INDEX_PIP, INDEX_TIP, INSTALL_HINT, HandLandmarks, LearnedConfig, LearnedDetector,
-    cap_from_landmarks, runtime_available,
+    cap_from_landmarks,
 )
 from vishap.vision.skin_model import SkinModel
 from vishap.vision.track import TipTracker, TrackerConfig
@@ -55,6 +59,9 @@ class HybridConfig:
     fit_radius_frac: float = 0.7   # radius given to the cap test, as a fraction of the estimated cap radius
     skin: str = "local"            # "local": colour model learned from the hand in the found frame;
     #                                "model": the project's shipped skin model
+    template: bool = True          # when the cap fit fails, follow the fingertip's patch (normalised cross-correlation)
+    template_radii: float = 2.0    # half-side of that patch, in cap radii
+    min_ncc: float = 0.7           # weaker matches are misses
     tracker: TrackerConfig = TrackerConfig(q_px=2e5, r_px=1.0, window_max_px=200.0)
 
     def __post_init__(self) -> None:
@@ -136,6 +143,11 @@ def _smooth_hist(h: np.ndarray) -> np.ndarray:
     return h
 
 
+def _parabola_vertex(a: float, b: float, c: float) -> float:
+    den = a - 2.0 * b + c
+    return float(np.clip(0.5 * (a - c) / den, -0.5, 0.5)) if den < 0 else 0.0
+
+
 def _unit(v: np.ndarray) -> np.ndarray:
     n = float(np.hypot(*v))
     return v / n if n > 1e-9 else np.array([0.0, 1.0])
@@ -175,6 +187,7 @@ class HybridDetector:
         self._misses = 0
         self._cap_at_find: np.ndarray | None = None
         self._have_colour = False
+        self._template: np.ndarray | None = None
 
     # ------------------------------------------------------------------ the two halves
     def _skin_mask(self, win: np.ndarray) -> np.ndarray:
@@ -209,6 +222,37 @@ class HybridDetector:
                 best = (dist, _Fit(uv, float(tip.cap_radius_px), d))
         return None if best is None else best[1]
 
+    def _patch(self, image: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray | None:
+        """Grey patch of half-side ``template_radii`` radii centred on the cap (None at the border)."""
+        half = max(4, int(round(self.config.template_radii * radius)))
+        x, y = int(round(centre[0])), int(round(centre[1]))
+        h, w = image.shape[:2]
+        if x - half < 0 or y - half < 0 or x + half + 1 > w or y + half + 1 > h:
+            return None
+        self._template_offset = np.array([x - centre[0], y - centre[1]])
+        return cv2.cvtColor(image[y - half: y + half + 1, x - half: x + half + 1], cv2.COLOR_BGR2GRAY)
+
+    def _match(self, image: np.ndarray, centre: np.ndarray, extra_px: float) -> np.ndarray | None:
+        """Cap centre where the find frame's patch matches best around ``centre``, or None."""
+        tmpl = self._template
+        half = tmpl.shape[0] // 2
+        reach = int(math.ceil(self.config.gate_radii * self._radius + extra_px))
+        x, y = int(round(centre[0])), int(round(centre[1]))
+        h, w = image.shape[:2]
+        x0, y0 = max(0, x - half - reach), max(0, y - half - reach)
+        x1, y1 = min(w, x + half + reach + 1), min(h, y + half + reach + 1)
+        if x1 - x0 < tmpl.shape[1] + 2 or y1 - y0 < tmpl.shape[0] + 2:
+            return None
+        win = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_BGR2GRAY)
+        ncc = cv2.matchTemplate(win, tmpl, cv2.TM_CCOEFF_NORMED)
+        _, best, _, (i, j) = cv2.minMaxLoc(ncc)
+        if best < self.config.min_ncc:
+            return None
+        # sub-pixel: the vertex of a parabola through the peak and its two neighbours, per axis
+        di = _parabola_vertex(ncc[j, i - 1], best, ncc[j, i + 1]) if 0 < i < ncc.shape[1] - 1 else 0.0
+        dj = _parabola_vertex(ncc[j - 1, i], best, ncc[j + 1, i]) if 0 < j < ncc.shape[0] - 1 else 0.0
+        return np.array([x0 + i + di + half, y0 + j + dj + half]) - self._template_offset
+
     def _find(self, image: np.ndarray, t: float, timings: dict) -> MonoDetection:
         if self._cap_at_find is not None and self.tracker.tracking:
             self.learned.shift_roi(self.tracker.kf.position - self._cap_at_find)
@@ -232,6 +276,7 @@ class HybridDetector:
             meas, tip_end, radius, direction, mode = cap, hand.uvz[INDEX_TIP, :2].copy(), r, d, "learned"
         self.tracker.restart(t, meas)
         self._cap_at_find = meas.copy()
+        self._template = self._patch(image, meas, radius) if self.config.template else None
         self._radius, self._direction = radius, direction
         return MonoDetection(t, True, tip_end_uv=tip_end, cap_uv=meas.copy(), radius_px=radius, direction=direction,
                              confidence=float(hand.presence), mode=mode)
@@ -242,6 +287,11 @@ class HybridDetector:
         pred = self.tracker.predict(t)
         sig = float(np.sqrt(max(self.tracker.kf.P[0, 0], self.tracker.kf.P[1, 1])))
         fit = self._fit(image, pred, self._radius, self._direction, extra_px=2.0 * sig)
+        mode = "tracked"
+        if fit is None and self._template is not None:
+            uv = self._match(image, pred, extra_px=2.0 * sig)
+            if uv is not None:
+                fit, mode = _Fit(uv, self._radius, self._direction.copy()), "tracked_template"
         timings["window_ms"] = 1e3 * (time.perf_counter() - t0)
         self._since_find += 1
         if fit is None:
@@ -259,7 +309,7 @@ class HybridDetector:
         self._radius = 0.7 * self._radius + 0.3 * fit.radius
         self._direction = _unit(0.7 * self._direction + 0.3 * fit.direction)
         return MonoDetection(t, True, tip_end_uv=fit.tip_end_uv, cap_uv=fit.cap_uv.copy(), radius_px=fit.radius,
-                             direction=fit.direction, confidence=1.0, mode="tracked")
+                             direction=fit.direction, confidence=1.0, mode=mode)
 
     # ------------------------------------------------------------------ MonoDetector
     def process(self, image: np.ndarray, t: float) -> MonoDetection:
@@ -276,7 +326,9 @@ class HybridDetector:
 
 
 def _make(**options) -> HybridDetector:
-    if not runtime_available():
+    from vishap.vision import learned
+
+    if not learned.runtime_available():
         raise ConfigError(INSTALL_HINT)
     return HybridDetector(HybridConfig(**options))
 
