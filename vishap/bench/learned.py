@@ -93,7 +93,18 @@ def _scores(results: list[dict]) -> dict:
 def _step(det, img, t, gt) -> dict:
     d = det.process(img, t)
     return {"found": d.found, "tip": d.tip_end_uv, "cap": d.cap_uv, "gt": gt, "mode": d.mode,
-            "ms": d.timings.get("total_ms", np.nan)}
+            "radius": d.radius_px, "direction": d.direction, "ms": d.timings.get("total_ms", np.nan)}
+
+
+def _label_offset(results: list[dict]) -> dict:
+    """Where the annotation lies along the finger, relative to a fitted cap: ``(gt − cap)·(−direction)``
+    in cap radii (1: the fingertip's end; 0: the cap centre), over frames with a cap fit."""
+    off = [float((r["gt"] - r["cap"]) @ -r["direction"]) / r["radius"] for r in results
+           if r["mode"] == "learned+refine" and r["gt"] is not None and r["radius"] > 0]
+    if not off:
+        return {"frames": 0}
+    return {"frames": len(off), "median_radii": float(np.median(off)),
+            "quartiles_radii": [float(np.percentile(off, 25)), float(np.percentile(off, 75))]}
 
 
 def _moving_frames(img: np.ndarray, gt: np.ndarray, n: int, seed: int):
@@ -169,6 +180,7 @@ def run(args: argparse.Namespace) -> dict:
     record = {
         "data": str(args.data),
         "photos": photos,
+        "annotation_along_finger": _label_offset(photo["hybrid"]),
         "video": videos,
         "moving_photo": movings,
         "hybrid_over_learned_video_time": {
