@@ -210,7 +210,14 @@ def _chart(rec: dict, path: Path) -> None:
             for k, marker in ((20, "o"), (30, "s")):
                 ax.scatter(s[key], s[f"pck_{k}"], marker=marker, color=_colour(name))
             ax.annotate(name, (s[key], s["pck_20"]), textcoords="offset points", xytext=(4, -10), fontsize=7)
+        from matplotlib.ticker import NullFormatter, ScalarFormatter
+
         ax.set_xscale("log")
+        xs = [s[key] for s in group.values()]
+        if xs:
+            ax.set_xlim(min(xs) / 2, max(xs) * 2)
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("ms per frame (" + ("median" if key == "ms_per_frame" else "mean, re-checks included") + ")")
         ax.set_ylabel("PCK (o: 20 px, s: 30 px) of tip_end_uv")
         ax.set_ylim(0, 1.02)
