@@ -140,3 +140,47 @@ def test_bad_image_is_one_clear_error(model):
     det = learned.LearnedDetector(model=model)
     with pytest.raises(ShapeError, match="uint8 BGR"):
         det.process(np.zeros((480, 640), np.float32), 0.0)
+
+
+def _small_set(tmp_path, names):
+    real_photo(names[0])  # skips without the real data
+    (tmp_path / "images").mkdir(parents=True)
+    rows = []
+    with open(REAL / "labels.csv", newline="") as f:
+        for r in csv.DictReader(f):
+            if r["frame"] in names:
+                (tmp_path / "images" / r["frame"]).write_bytes((REAL / "images" / r["frame"]).read_bytes())
+                rows.append(f"{r['frame']},{r['u']},{r['v']}")
+    (tmp_path / "labels.csv").write_text("frame,u,v\n" + "\n".join(rows) + "\n")
+    return tmp_path
+
+
+def test_bench_without_the_runtime_says_so(monkeypatch, tmp_path):
+    import argparse
+
+    from vishap.bench import learned as bench
+
+    monkeypatch.setattr(learned, "runtime_available", lambda: False)
+    rec = bench.run(argparse.Namespace(out=str(tmp_path), data=str(tmp_path)))
+    assert rec["available"] is False and "[learned]" in rec["reason"]
+
+
+def test_bench_scores_detectors_on_real_photos(tmp_path):
+    pytest.importorskip("ai_edge_litert")
+    import argparse
+
+    from vishap.bench import learned as bench
+
+    data = _small_set(tmp_path / "data", ["TI1K_IMAGE_0401.jpg", "TI1K_IMAGE_0402.jpg", "TI1K_IMAGE_0403.jpg"])
+    args = argparse.Namespace(out=str(tmp_path / "out"), data=str(data), every=1, recheck="2",
+                              moving_photos=1, moving_frames=8)
+    rec = bench.run(args)
+    assert set(rec["photos"]) == {"learned", "hybrid"}
+    assert set(rec["video"]) == {"learned", "learned_video", "hybrid", "hybrid_recheck_2"}
+    for group in ("photos", "video", "moving_photo"):
+        for s in rec[group].values():
+            assert s["detection_rate"] == 1.0 and s["pck_30"] == 1.0 and s["ms_per_frame"] > 0
+    # the moving photo: after the first find the hybrid follows in the window, without the networks
+    assert rec["moving_photo"]["hybrid"]["modes"].get("tracked", 0) >= 6
+    assert rec["hybrid_over_learned_video_time"]["moving_photo_median"] < 1.0
+    assert (tmp_path / "out" / "learned_speed_accuracy.png").stat().st_size > 1000
