@@ -10,6 +10,8 @@
   ``learned_video`` (MediaPipe's video mode: the landmark network on the region the last landmarks
   give, the palm network only when that loses the hand) and ``hybrid`` (window tracking between
   re-checks), plus the hybrid's re-check interval swept;
+* **peer** (``--mediapipe-task FILE``, where the ``mediapipe`` package is importable, e.g. in a separate
+  environment): MediaPipe's own HandLandmarker in image and video mode beside them;
 * **moving photo**: a few photos moved along a smooth path (a video whose every frame has a known
   tip): the per-frame time of ``learned_video`` against the hybrid in pure tracking mode, and how
   well the tracked tip follows the motion.
@@ -40,6 +42,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--recheck", default="3,5,10,20", help="hybrid re-check intervals to sweep on the video")
     p.add_argument("--moving-photos", type=int, default=5, help="photos turned into moving-image videos (default 5)")
     p.add_argument("--moving-frames", type=int, default=60, help="frames per moving-image video (default 60)")
+    p.add_argument("--mediapipe-task", default=None,
+                   help="a hand_landmarker.task bundle: also run MediaPipe's own HandLandmarker (image and video "
+                        "mode) as the peer, where the mediapipe package is importable (it is not a dependency)")
 
 
 def _load_labels(folder: Path, every: int) -> list[tuple[Path, np.ndarray | None]]:
@@ -118,6 +123,59 @@ def _moving_frames(img: np.ndarray, gt: np.ndarray, n: int, seed: int):
         yield cv2.warpAffine(img, m, (wd, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT), gt + s
 
 
+class _MediaPipePeer:
+    """MediaPipe's HandLandmarker (the ``mediapipe`` package) as a mono detector, for the chart only."""
+
+    def __init__(self, task: str, mode: str):
+        import mediapipe as mp
+        from mediapipe.tasks import python as mpt
+        from mediapipe.tasks.python import vision
+
+        self._mp, self._vision, self._mode = mp, vision, mode
+        running = vision.RunningMode.IMAGE if mode == "image" else vision.RunningMode.VIDEO
+        self._opts = vision.HandLandmarkerOptions(base_options=mpt.BaseOptions(model_asset_path=task),
+                                                  num_hands=1, running_mode=running)
+        self.name = f"mediapipe_{mode}"
+        self.reset()
+
+    def reset(self) -> None:
+        if self._mode == "video" or not hasattr(self, "_lm"):  # image mode keeps no state between frames
+            self._lm = self._vision.HandLandmarker.create_from_options(self._opts)
+        self._t_ms = -1
+
+    def process(self, image, t):
+        import time
+
+        from vishap.vision.detector import MonoDetection
+        from vishap.vision.learned import INDEX_TIP, cap_from_landmarks
+
+        t0 = time.perf_counter()
+        im = self._mp.Image(image_format=self._mp.ImageFormat.SRGB, data=cv2.cvtColor(image, cv2.COLOR_BGR2RGB))
+        if self._mode == "image":
+            out = self._lm.detect(im)
+        else:  # timestamps must increase
+            self._t_ms = max(self._t_ms + 1, int(round(t * 1000)))
+            out = self._lm.detect_for_video(im, self._t_ms)
+        ms = 1e3 * (time.perf_counter() - t0)
+        if not out.hand_landmarks:
+            return MonoDetection(t, False, mode=self.name, timings={"total_ms": ms})
+        h, w = image.shape[:2]
+        uvz = np.array([[p.x * w, p.y * h, p.z * w] for p in out.hand_landmarks[0]])
+        cap, r, d = cap_from_landmarks(uvz)
+        return MonoDetection(t, True, tip_end_uv=uvz[INDEX_TIP, :2], cap_uv=cap, radius_px=r, direction=d,
+                             mode=self.name, timings={"total_ms": ms})
+
+
+def _mediapipe_peers(task: str | None) -> dict:
+    if not task:
+        return {}
+    try:
+        return {"mediapipe_image": _MediaPipePeer(task, "image"), "mediapipe_video": _MediaPipePeer(task, "video")}
+    except ImportError:
+        print("mediapipe not importable: MediaPipe's own HandLandmarker left out")
+        return {}
+
+
 def run(args: argparse.Namespace) -> dict:
     from vishap.vision import learned as L
     from vishap.vision.hybrid import HybridConfig, HybridDetector
@@ -135,7 +193,10 @@ def run(args: argparse.Namespace) -> dict:
         return L.LearnedDetector(L.LearnedConfig(mode=kind))
 
     # ---------------------------------------------------------------- photos
+    peers = _mediapipe_peers(getattr(args, "mediapipe_task", None))
     photo_dets = {"learned": make("image"), "hybrid": make("hybrid")}
+    if peers:
+        photo_dets["mediapipe_image"] = peers["mediapipe_image"]
     photo = {k: [] for k in photo_dets}
     for i, (path, gt) in enumerate(items):
         img = _read(path)
@@ -147,6 +208,8 @@ def run(args: argparse.Namespace) -> dict:
     # ---------------------------------------------------------------- video: the photos in order
     recheck = [int(x) for x in str(args.recheck).split(",") if x]
     video_dets = {"learned": make("image"), "learned_video": make("video"), "hybrid": make("hybrid")}
+    if peers:
+        video_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
     for n in recheck:
         if n != HybridConfig().recheck_every:
             video_dets[f"hybrid_recheck_{n}"] = make("hybrid", recheck_every=n)
@@ -161,8 +224,10 @@ def run(args: argparse.Namespace) -> dict:
     labelled = [(p, g) for p, g in items if g is not None]
     picks = [labelled[int(j)] for j in np.linspace(0, len(labelled) - 1, max(0, args.moving_photos), dtype=int)] \
         if labelled and args.moving_photos > 0 else []
-    moving = {"learned_video": [], "hybrid": []}
     mv_dets = {"learned_video": make("video"), "hybrid": make("hybrid")}
+    if peers:
+        mv_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
+    moving = {k: [] for k in mv_dets}
     for j, (path, gt) in enumerate(picks):
         for det in mv_dets.values():
             det.reset()
@@ -189,6 +254,12 @@ def run(args: argparse.Namespace) -> dict:
             "moving_photo_median": ratio(movings, "hybrid", "learned_video", "ms_per_frame"),
             "moving_photo_mean": ratio(movings, "hybrid", "learned_video", "ms_per_frame_mean"),
         },
+        "hybrid_over_mediapipe_video_time": {
+            "video_median": ratio(videos, "hybrid", "mediapipe_video", "ms_per_frame"),
+            "video_mean": ratio(videos, "hybrid", "mediapipe_video", "ms_per_frame_mean"),
+            "moving_photo_median": ratio(movings, "hybrid", "mediapipe_video", "ms_per_frame"),
+            "moving_photo_mean": ratio(movings, "hybrid", "mediapipe_video", "ms_per_frame_mean"),
+        } if peers else None,
         "hybrid_over_learned_time": {
             "video_mean": ratio(videos, "hybrid", "learned", "ms_per_frame_mean"),
             "photos_median": ratio(photos, "hybrid", "learned", "ms_per_frame"),
@@ -229,4 +300,5 @@ def _chart(rec: dict, path: Path) -> None:
 def _colour(name: str) -> str:
     if name.startswith("hybrid_recheck"):
         return "tab:orange"
-    return {"learned": "tab:blue", "learned_video": "tab:purple", "hybrid": "tab:red"}.get(name, "grey")
+    return {"learned": "tab:blue", "learned_video": "tab:purple", "hybrid": "tab:red",
+            "mediapipe_image": "tab:green", "mediapipe_video": "tab:olive"}.get(name, "grey")
