@@ -62,7 +62,8 @@ class HybridConfig:
     template: bool = True          # when the cap fit fails, follow the fingertip's patch (normalised cross-correlation)
     template_radii: float = 2.0    # half-side of that patch, in cap radii
     min_ncc: float = 0.7           # weaker matches are misses
-    tracker: TrackerConfig = TrackerConfig(q_px=2e5, r_px=1.0, window_max_px=200.0)
+    # a hand-held camera swings the whole image: more acceleration noise than a still rig's default
+    tracker: TrackerConfig = TrackerConfig(q_px=2e5, r_px=1.0)
 
     def __post_init__(self) -> None:
         if self.skin not in ("local", "model"):
@@ -72,7 +73,7 @@ class HybridConfig:
 
 
 class LocalSkin:
-    """Two-class hue–saturation histogram model of one hand against its surroundings.
+    """Two-class hue–saturation–value histogram model of one hand against its surroundings.
 
     Skin samples: a band of half the cap radius along the index finger's landmark chain (inside
     the finger, whose half-width is about one cap radius). Background samples: a window around the
