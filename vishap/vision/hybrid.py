@@ -111,8 +111,9 @@ class LocalSkin:
         hand_region = np.zeros_like(skin)
         hull = cv2.convexHull(np.round(hand.uv - off).astype(np.int32))
         cv2.fillConvexPoly(hand_region, hull, 255)
-        grow = int(round(2 * r))
-        hand_region = cv2.dilate(hand_region, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * grow + 1, 2 * grow + 1)))
+        # grown by 2r: the hull's outline drawn 4r thick (round caps) is its dilation by a disk,
+        # at a fraction of the cost of a morphological dilation with a large kernel
+        cv2.polylines(hand_region, [hull], True, 255, thickness=max(1, int(round(4 * r))))
         background = cv2.bitwise_not(hand_region)
         if cv2.countNonZero(skin) < 20 or cv2.countNonZero(background) < 20:
             return False
