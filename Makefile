@@ -11,7 +11,7 @@ $(VENV)/.installed: pyproject.toml constraints.txt scripts/setup-system.sh
 	scripts/setup-system.sh
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -c constraints.txt -e '.[test,peers]'
+	$(PY) -m pip install -q -c constraints.txt -e '.[test,peers,learned]'
 	touch $@
 
 demo: setup

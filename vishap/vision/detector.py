@@ -66,6 +66,8 @@ _REGISTRY: dict[str, tuple[Callable[..., MonoDetector], str]] = {}
 # their extra is installed; their factories raise a ConfigError that says how to install it)
 _BUILTIN_MODULES: tuple[str, ...] = (
     "vishap.vision.mono",
+    "vishap.vision.learned",
+    "vishap.vision.hybrid",
 )
 
 

@@ -1,0 +1,118 @@
+"""The hybrid detector: learned find + geometric refine on real photos, window tracking on a moving
+real image (needs the [learned] extra's runtime; skipped without it)."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from vishap._core.errors import ConfigError
+from vishap.vision.hybrid import HybridConfig, HybridDetector, LocalSkin
+
+from .test_learned import real_photo
+
+pytest.importorskip("ai_edge_litert")
+
+
+@pytest.fixture(scope="module")
+def model():
+    from vishap.vision.learned import HandLandmarkModel
+
+    return HandLandmarkModel()
+
+
+def hybrid(model, **options) -> HybridDetector:
+    from vishap.vision.learned import LearnedConfig, LearnedDetector
+
+    return HybridDetector(HybridConfig(**options), learned=LearnedDetector(LearnedConfig(mode="video"), model=model))
+
+
+def test_bad_options_are_one_clear_error():
+    with pytest.raises(ConfigError, match="skin"):
+        HybridConfig(skin="rgb")
+
+
+@pytest.mark.parametrize("name", ["TI1K_IMAGE_0201.jpg", "TI1K_IMAGE_0401.jpg", "TI1K_IMAGE_0701.jpg"])
+def test_photo_is_found_by_the_model_and_refined_by_the_cap_fit(model, name):
+    img, tip = real_photo(name)
+    det = hybrid(model)
+    d = det.process(img, 0.0)
+    assert d.found and d.mode == "learned+refine"
+    hand = det.learned.last_hand
+    from vishap.vision.learned import cap_from_landmarks
+
+    cap, r, direction = cap_from_landmarks(hand.uvz)
+    # the fitted cap agrees with the landmarks' estimate (centre within the gate, similar radius)
+    assert np.hypot(*(d.cap_uv - cap)) <= det.config.gate_radii * r
+    assert 0.6 < d.radius_px / r < 1.6
+    np.testing.assert_allclose(d.tip_end_uv, d.cap_uv - d.radius_px * d.direction)
+    assert np.hypot(*(d.tip_end_uv - tip)) < 25.0          # measured: 9–17 px on these photos
+
+
+def test_local_skin_model_separates_the_finger_from_its_surroundings(model):
+    img, _ = real_photo("TI1K_IMAGE_0401.jpg")
+    det = hybrid(model)
+    det.process(img, 0.0)
+    hand = det.learned.last_hand
+    skin = LocalSkin()
+    assert skin.fit(img, hand, 10.0)
+    mask = skin.mask(img)
+    finger = hand.uv[6:8].mean(axis=0).round().astype(int)   # between PIP and DIP: inside the finger
+    assert mask[finger[1], finger[0]] == 255
+    # the frame's corners are background here
+    assert mask[:20, :20].mean() < 64 and mask[-20:, -20:].mean() < 64
+
+
+def test_window_tracking_follows_a_moving_real_image(model):
+    img, _ = real_photo("TI1K_IMAGE_0401.jpg")
+    det = hybrid(model, recheck_every=10)
+    n, dt = 24, 1 / 30
+    shifts = np.array([[2.3 * k, 6.0 * np.sin(0.25 * k)] for k in range(n)])
+    caps, modes = [], []
+    for k in range(n):
+        m = np.float32([[1, 0, shifts[k, 0]], [0, 1, shifts[k, 1]]])
+        frame = cv2.warpAffine(img, m, (640, 480), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        d = det.process(frame, k * dt)
+        assert d.found
+        caps.append(d.cap_uv)
+        modes.append(d.mode)
+    tracked = [k for k in range(n) if modes[k] == "tracked"]
+    finds = [k for k in range(n) if modes[k].startswith("learned")]
+    assert finds == [0, 11, 22]                    # a find, 10 tracked frames, a re-check, ...
+    assert len(tracked) == n - len(finds)
+    # the tracked cap moves with the image, to within a pixel
+    k0 = tracked[0]
+    err = [np.hypot(*((caps[k] - caps[k0]) - (shifts[k] - shifts[k0]))) for k in tracked[1:10]]
+    assert np.median(err) < 1.0 and max(err) < 2.5
+    # tracked frames do not run the networks
+    assert det.process(cv2.warpAffine(img, np.float32([[1, 0, shifts[-1, 0] + 2], [0, 1, shifts[-1, 1]]]),
+                                      (640, 480), borderMode=cv2.BORDER_REFLECT), n * dt).timings.keys() \
+        == {"window_ms", "total_ms"}
+
+
+def test_a_jump_out_of_the_window_hands_the_frame_back_to_the_model(model):
+    img, _ = real_photo("TI1K_IMAGE_0401.jpg")
+    det = hybrid(model)
+    first = det.process(img, 0.0)
+    jumped = cv2.warpAffine(img, np.float32([[1, 0, -90], [0, 1, 40]]), (640, 480), borderMode=cv2.BORDER_REFLECT)
+    d = det.process(jumped, 1 / 30)
+    assert d.found and d.mode.startswith("learned")
+    np.testing.assert_allclose(d.cap_uv - first.cap_uv, [-90, 40], atol=6.0)
+
+
+def test_where_the_colour_fails_the_fingertip_patch_follows(model):
+    # a pale finger on a pale, textured wall: the window's skin mask breaks up, the cap fit fails
+    img, _ = real_photo("TI1K_IMAGE_0891.jpg")
+    det = hybrid(model)
+    shifts = np.array([[-1.7 * k, 1.1 * k] for k in range(8)])
+    dets = [det.process(cv2.warpAffine(img, np.float32([[1, 0, sx], [0, 1, sy]]), (640, 480),
+                                       borderMode=cv2.BORDER_REFLECT), k / 30) for k, (sx, sy) in enumerate(shifts)]
+    assert dets[0].mode == "learned"
+    assert [d.mode for d in dets[1:]] == ["tracked_template"] * 7
+    err = [np.hypot(*((d.cap_uv - dets[0].cap_uv) - s)) for d, s in zip(dets[1:], shifts[1:])]
+    assert max(err) < 0.5
+    # without the patch follower every frame goes back to the learned model
+    det = hybrid(model, template=False)
+    modes = [det.process(cv2.warpAffine(img, np.float32([[1, 0, sx], [0, 1, sy]]), (640, 480),
+                                        borderMode=cv2.BORDER_REFLECT), k / 30).mode for k, (sx, sy) in enumerate(shifts)]
+    assert all(m.startswith("learned") for m in modes)

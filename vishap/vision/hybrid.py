@@ -1,0 +1,339 @@
+"""Hybrid fingertip detector: the learned model finds the hand, the geometric cap fit follows it.
+
+The learned hand-landmark model (:mod:`vishap.vision.learned`) is accurate on real frames but
+costs a full network per frame; the paper's cap test and circle fit (:mod:`vishap.vision.fingertip`)
+with the Kalman tracker (:mod:`vishap.vision.track`) cost a small window per frame but need a
+skin mask that holds and a start. The hybrid gives each the part it is good at:
+
+1. **find** (slow, every ``recheck_every`` frames or when the window loses the tip): the landmark
+   model, in video mode (its hand region moved by the motion tracked since it last ran; the palm
+   detector only when that region holds no hand), gives the index finger's landmarks, its cap
+   centre and radius (:func:`~vishap.vision.learned.cap_from_landmarks`) and the finger's
+   direction. From the same frame it learns this hand's colour against its surroundings
+   (:class:`LocalSkin`), since with a camera that moves there is no hand-free background to learn.
+2. **refine** (that frame): the cap test and circle fit (:func:`~vishap.vision.fingertip.detect_fingertips`)
+   on the skin mask of a window around the learned cap give a sub-pixel cap centre and radius;
+   they replace the landmark estimate when they agree with it (within ``gate_radii`` cap radii).
+3. **follow** (fast, the frames between): the tracker predicts the cap, the window around the
+   prediction is segmented with the learned colour model, the cap fit measures it, the tracker
+   updates. Where the colour model cannot separate the finger from what lies behind it (pale
+   skin on a pale wall, motion blur) the fit fails; the fingertip's patch from the last *find*,
+   matched by normalised cross-correlation in the same window (sub-pixel peak), measures the cap
+   instead (mode ``tracked_template``). A frame where neither holds (no fit near the prediction
+   pointing the right way, no match above ``min_ncc``) is a miss; ``max_misses`` misses in a row
+   hand the frame back to the learned model.
+
+On independent photos (``reset()`` before each) every frame is a *find* + *refine*.
+``tip_end_uv`` is the fitted cap's outermost point along the finger (cap centre − radius ×
+direction into the finger), or the index-tip landmark when no fit agreed.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from vishap._core.errors import ConfigError
+from vishap.vision.detector import MonoDetection, register_detector
+from vishap.vision.fingertip import FingertipConfig, detect_fingertips
+from vishap.vision.learned import (
+    INDEX_DIP, INDEX_MCP, INDEX_PIP, INDEX_TIP, INSTALL_HINT, HandLandmarks, LearnedConfig, LearnedDetector,
+    cap_from_landmarks,
+)
+from vishap.vision.skin_model import SkinModel
+from vishap.vision.track import TipTracker, TrackerConfig
+
+__all__ = ["HybridConfig", "LocalSkin", "HybridDetector"]
+
+
+@dataclass(frozen=True)
+class HybridConfig:
+    recheck_every: int = 10        # tracked frames between two runs of the learned model
+    max_misses: int = 0            # window misses in a row before the learned model takes over (0: at once)
+    window_radii: float = 3.0      # window half-side: this many cap radii beyond the tracker's prediction
+    gate_radii: float = 1.5        # a fit farther than this many radii from the prediction is a miss
+    min_direction_cos: float = 0.5  # a fit whose finger direction turns more than 60° is a miss
+    fit_radius_frac: float = 0.7   # radius given to the cap test, as a fraction of the estimated cap radius
+    skin: str = "local"            # "local": colour model learned from the hand in the found frame;
+    #                                "model": the project's shipped skin model
+    template: bool = True          # when the cap fit fails, follow the fingertip's patch (normalised cross-correlation)
+    template_radii: float = 2.0    # half-side of that patch, in cap radii
+    min_ncc: float = 0.9           # weaker matches are misses (train video: 0.7 → PCK@30 0.88, 0.9 → 0.95, same time)
+    # a hand-held camera swings the whole image: more acceleration noise than a still rig's default
+    tracker: TrackerConfig = TrackerConfig(q_px=2e5, r_px=1.0)
+
+    def __post_init__(self) -> None:
+        if self.skin not in ("local", "model"):
+            raise ConfigError(f"skin must be 'local' or 'model', got {self.skin!r}", field="skin")
+        if int(self.recheck_every) < 1 or int(self.max_misses) < 0:
+            raise ConfigError("recheck_every must be ≥ 1 and max_misses ≥ 0", field="recheck_every")
+
+
+class LocalSkin:
+    """Two-class hue–saturation–value histogram model of one hand against its surroundings.
+
+    Skin samples: a band of half the cap radius along the index finger's landmark chain (inside
+    the finger, whose half-width is about one cap radius). Background samples: a window around the
+    fingertip minus the hand (the landmarks' convex hull grown by two cap radii). A pixel is skin
+    when its smoothed skin likelihood exceeds its background likelihood. The model is refit at each
+    *find*, so it follows the light and the scene.
+    """
+
+    BINS = [18, 16, 8]             # hue, saturation, value
+    _RANGES = [0, 180, 0, 256, 0, 256]
+    # per-channel value → bin, applied with one cv2.LUT over the three channels
+    _BIN_LUT = np.stack([np.minimum(np.arange(256) * BINS[0] // 180, BINS[0] - 1),
+                         np.arange(256) * BINS[1] // 256, np.arange(256) * BINS[2] // 256], axis=-1
+                        ).astype(np.uint8).reshape(256, 1, 3)
+
+    def __init__(self):
+        self.lut: np.ndarray | None = None
+
+    def fit(self, image_bgr: np.ndarray, hand: HandLandmarks, radius_px: float) -> bool:
+        h, w = image_bgr.shape[:2]
+        r = max(2.0, float(radius_px))
+        chain = hand.uv[[INDEX_MCP, INDEX_PIP, INDEX_DIP, INDEX_TIP]]
+        half = 6.0 * r
+        x0, y0 = (np.floor(chain.min(axis=0) - half)).astype(int).clip(0, (w, h))
+        x1, y1 = (np.ceil(chain.max(axis=0) + half)).astype(int).clip(0, (w, h))
+        if x1 - x0 < 4 or y1 - y0 < 4:
+            return False
+        hsv = cv2.cvtColor(image_bgr[y0:y1, x0:x1], cv2.COLOR_BGR2HSV)
+        off = np.array([x0, y0], np.float64)
+        skin = np.zeros(hsv.shape[:2], np.uint8)
+        # the chain stops half a radius short of the tip's end, where the cap's edge starts
+        end = chain[-1] + 0.5 * r * _unit(chain[-2] - chain[-1])
+        pts = np.vstack([chain[:-1], end]) - off
+        cv2.polylines(skin, [np.round(pts).astype(np.int32)], False, 255, thickness=max(1, int(round(r))))
+        hand_region = np.zeros_like(skin)
+        hull = cv2.convexHull(np.round(hand.uv - off).astype(np.int32))
+        cv2.fillConvexPoly(hand_region, hull, 255)
+        # grown by 2r: the hull's outline drawn 4r thick (round caps) is its dilation by a disk,
+        # at a fraction of the cost of a morphological dilation with a large kernel
+        cv2.polylines(hand_region, [hull], True, 255, thickness=max(1, int(round(4 * r))))
+        background = cv2.bitwise_not(hand_region)
+        if cv2.countNonZero(skin) < 20 or cv2.countNonZero(background) < 20:
+            return False
+        hs = cv2.calcHist([hsv], [0, 1, 2], skin, self.BINS, self._RANGES)
+        hb = cv2.calcHist([hsv], [0, 1, 2], background, self.BINS, self._RANGES)
+        # smooth over neighbouring bins so colours near the samples count too
+        hs = _smooth_hist(hs / hs.sum())
+        hb = _smooth_hist(hb / hb.sum())
+        self.lut = np.where(hs > hb, 255, 0).astype(np.uint8).ravel()
+        return True
+
+    def mask(self, image_bgr: np.ndarray) -> np.ndarray:
+        """Skin mask (uint8 0/255) of a BGR image (a 3-D look-up: OpenCV's back projection would
+        read a 3-D NumPy histogram as a 2-D one with channels)."""
+        hsv = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2HSV)
+        idx = cv2.LUT(hsv, self._BIN_LUT).astype(np.intp)
+        return self.lut[(idx[..., 0] * self.BINS[1] + idx[..., 1]) * self.BINS[2] + idx[..., 2]]
+
+
+def _smooth_hist(h: np.ndarray) -> np.ndarray:
+    """Separable [1 2 1]/4 smoothing of a 3-D histogram; the hue axis (0) wraps."""
+    k = np.array([0.25, 0.5, 0.25], np.float32)
+    h = k[0] * np.roll(h, 1, axis=0) + k[1] * h + k[2] * np.roll(h, -1, axis=0)
+    for ax in (1, 2):
+        p = np.concatenate([np.take(h, [0], axis=ax), h, np.take(h, [-1], axis=ax)], axis=ax)
+        n = h.shape[ax]
+        h = k[0] * np.take(p, range(0, n), axis=ax) + k[1] * np.take(p, range(1, n + 1), axis=ax) \
+            + k[2] * np.take(p, range(2, n + 2), axis=ax)
+    return h
+
+
+def _parabola_vertex(a: float, b: float, c: float) -> float:
+    den = a - 2.0 * b + c
+    return float(np.clip(0.5 * (a - c) / den, -0.5, 0.5)) if den < 0 else 0.0
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = float(np.hypot(*v))
+    return v / n if n > 1e-9 else np.array([0.0, 1.0])
+
+
+@dataclass
+class _Fit:
+    cap_uv: np.ndarray
+    radius: float
+    direction: np.ndarray
+
+    @property
+    def tip_end_uv(self) -> np.ndarray:
+        return self.cap_uv - self.radius * self.direction
+
+
+class HybridDetector:
+    """:class:`~vishap.vision.detector.MonoDetector`: learned find, geometric refine and follow."""
+
+    name = "hybrid"
+
+    def __init__(self, config: HybridConfig = HybridConfig(), *, learned: LearnedDetector | None = None,
+                 skin_model: SkinModel | None = None):
+        self.config = config
+        self.learned = learned or LearnedDetector(LearnedConfig(mode="video"))
+        self._skin_model = skin_model if skin_model is not None else (SkinModel.load() if config.skin == "model" else None)
+        self._local = LocalSkin()
+        self.tracker = TipTracker(config.tracker)
+        self.reset()
+
+    def reset(self) -> None:
+        self.learned.reset()
+        self.tracker = TipTracker(self.config.tracker)
+        self._radius = 0.0
+        self._direction = np.array([0.0, 1.0])
+        self._since_find = 0
+        self._misses = 0
+        self._cap_at_find: np.ndarray | None = None
+        self._have_colour = False
+        self._template: np.ndarray | None = None
+
+    # ------------------------------------------------------------------ the two halves
+    def _skin_mask(self, win: np.ndarray) -> np.ndarray:
+        m = self._local.mask(win) if self._skin_model is None else self._skin_model.mask(win)
+        return cv2.medianBlur(m, 5)
+
+    def _fit(self, image: np.ndarray, centre: np.ndarray, radius: float, direction: np.ndarray,
+             extra_px: float = 0.0) -> _Fit | None:
+        """Cap test + circle fit in a window around ``centre``; the candidate nearest ``centre``
+        whose finger points the expected way, or None."""
+        c = self.config
+        h, w = image.shape[:2]
+        half = c.window_radii * radius + extra_px
+        x0, y0 = max(0, int(centre[0] - half)), max(0, int(centre[1] - half))
+        x1, y1 = min(w, int(math.ceil(centre[0] + half)) + 1), min(h, int(math.ceil(centre[1] + half)) + 1)
+        if x1 - x0 < 8 or y1 - y0 < 8:
+            return None
+        mask = self._skin_mask(image[y0:y1, x0:x1])
+        origin = np.array([x0, y0], np.float64)
+        tips = detect_fingertips(mask, max(1.5, c.fit_radius_frac * radius), FingertipConfig(),
+                                 prior_uv=centre - origin, max_tips=3)
+        best = None
+        for tip in tips:
+            d = tip.direction
+            if tip.cap_radius_px <= 0 or float(d @ direction) < c.min_direction_cos:
+                continue
+            uv = tip.uv + origin
+            dist = float(np.hypot(*(uv - centre)))
+            if dist > c.gate_radii * radius + extra_px:
+                continue
+            if best is None or dist < best[0]:
+                best = (dist, _Fit(uv, float(tip.cap_radius_px), d))
+        return None if best is None else best[1]
+
+    def _patch(self, image: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray | None:
+        """Grey patch of half-side ``template_radii`` radii centred on the cap (None at the border)."""
+        half = max(4, int(round(self.config.template_radii * radius)))
+        x, y = int(round(centre[0])), int(round(centre[1]))
+        h, w = image.shape[:2]
+        if x - half < 0 or y - half < 0 or x + half + 1 > w or y + half + 1 > h:
+            return None
+        self._template_offset = np.array([x - centre[0], y - centre[1]])
+        return cv2.cvtColor(image[y - half: y + half + 1, x - half: x + half + 1], cv2.COLOR_BGR2GRAY)
+
+    def _match(self, image: np.ndarray, centre: np.ndarray, extra_px: float) -> np.ndarray | None:
+        """Cap centre where the find frame's patch matches best around ``centre``, or None."""
+        tmpl = self._template
+        half = tmpl.shape[0] // 2
+        reach = int(math.ceil(self.config.gate_radii * self._radius + extra_px))
+        x, y = int(round(centre[0])), int(round(centre[1]))
+        h, w = image.shape[:2]
+        x0, y0 = max(0, x - half - reach), max(0, y - half - reach)
+        x1, y1 = min(w, x + half + reach + 1), min(h, y + half + reach + 1)
+        if x1 - x0 < tmpl.shape[1] + 2 or y1 - y0 < tmpl.shape[0] + 2:
+            return None
+        win = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_BGR2GRAY)
+        ncc = cv2.matchTemplate(win, tmpl, cv2.TM_CCOEFF_NORMED)
+        _, best, _, (i, j) = cv2.minMaxLoc(ncc)
+        if best < self.config.min_ncc:
+            return None
+        # sub-pixel: the vertex of a parabola through the peak and its two neighbours, per axis
+        di = _parabola_vertex(ncc[j, i - 1], best, ncc[j, i + 1]) if 0 < i < ncc.shape[1] - 1 else 0.0
+        dj = _parabola_vertex(ncc[j - 1, i], best, ncc[j + 1, i]) if 0 < j < ncc.shape[0] - 1 else 0.0
+        return np.array([x0 + i + di + half, y0 + j + dj + half]) - self._template_offset
+
+    def _find(self, image: np.ndarray, t: float, timings: dict) -> MonoDetection:
+        if self._cap_at_find is not None and self.tracker.tracking:
+            self.learned.shift_roi(self.tracker.kf.position - self._cap_at_find)
+        hand, tm = self.learned.detect_hand(image)
+        timings.update(tm)
+        self._since_find = 0
+        self._misses = 0
+        if hand is None:
+            self.tracker = TipTracker(self.config.tracker)
+            self._cap_at_find = None
+            return MonoDetection(t, False, mode="learned", reason="no hand found by the learned model")
+        cap, r, d = cap_from_landmarks(hand.uvz)
+        t0 = time.perf_counter()
+        if self._skin_model is None:
+            self._have_colour = self._local.fit(image, hand, r)
+        fit = self._fit(image, cap, r, d) if (self._have_colour or self._skin_model is not None) else None
+        timings["refine_ms"] = 1e3 * (time.perf_counter() - t0)
+        if fit is not None:
+            meas, tip_end, radius, direction, mode = fit.cap_uv, fit.tip_end_uv, fit.radius, fit.direction, "learned+refine"
+        else:
+            meas, tip_end, radius, direction, mode = cap, hand.uvz[INDEX_TIP, :2].copy(), r, d, "learned"
+        self.tracker.restart(t, meas)
+        self._cap_at_find = meas.copy()
+        self._template = self._patch(image, meas, radius) if self.config.template else None
+        self._radius, self._direction = radius, direction
+        return MonoDetection(t, True, tip_end_uv=tip_end, cap_uv=meas.copy(), radius_px=radius, direction=direction,
+                             confidence=float(hand.presence), mode=mode)
+
+    def _follow(self, image: np.ndarray, t: float, timings: dict) -> MonoDetection | None:
+        """One tracked frame; None when the window lost the tip (the caller finds it again)."""
+        t0 = time.perf_counter()
+        pred = self.tracker.predict(t)
+        sig = float(np.sqrt(max(self.tracker.kf.P[0, 0], self.tracker.kf.P[1, 1])))
+        fit = self._fit(image, pred, self._radius, self._direction, extra_px=2.0 * sig)
+        mode = "tracked"
+        if fit is None and self._template is not None:
+            uv = self._match(image, pred, extra_px=2.0 * sig)
+            if uv is not None:
+                fit, mode = _Fit(uv, self._radius, self._direction.copy()), "tracked_template"
+        timings["window_ms"] = 1e3 * (time.perf_counter() - t0)
+        self._since_find += 1
+        if fit is None:
+            self.tracker.update(t, None)
+            self._misses += 1
+            if self._misses > self.config.max_misses:
+                return None
+            uv = self.tracker.kf.position.copy()
+            return MonoDetection(t, True, tip_end_uv=uv - self._radius * self._direction, cap_uv=uv,
+                                 radius_px=self._radius, direction=self._direction.copy(),
+                                 confidence=self.tracker.confidence, mode="predicted")
+        self._misses = 0
+        self.tracker.update(t, fit.cap_uv)
+        # the radius and direction drift slowly: smooth them so one noisy fit cannot derail the next window
+        self._radius = 0.7 * self._radius + 0.3 * fit.radius
+        self._direction = _unit(0.7 * self._direction + 0.3 * fit.direction)
+        return MonoDetection(t, True, tip_end_uv=fit.tip_end_uv, cap_uv=fit.cap_uv.copy(), radius_px=fit.radius,
+                             direction=fit.direction, confidence=1.0, mode=mode)
+
+    # ------------------------------------------------------------------ MonoDetector
+    def process(self, image: np.ndarray, t: float) -> MonoDetection:
+        t0 = time.perf_counter()
+        timings: dict = {}
+        det = None
+        if self.tracker.tracking and self._radius > 0 and self._since_find < self.config.recheck_every:
+            det = self._follow(image, t, timings)
+        if det is None:
+            det = self._find(image, t, timings)
+        timings["total_ms"] = 1e3 * (time.perf_counter() - t0)
+        det.timings = timings
+        return det
+
+
+def _make(**options) -> HybridDetector:
+    from vishap.vision import learned
+
+    if not learned.runtime_available():
+        raise ConfigError(INSTALL_HINT)
+    return HybridDetector(HybridConfig(**options))
+
+
+register_detector("hybrid", _make, "learned model finds the hand, the geometric cap fit and Kalman tracker follow "
+                                   "it in a window (needs the [learned] extra)")
