@@ -18,7 +18,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     f = es.add_parser("fingertip", help="2-D fingertip scores (PCK@10/20/30, detection, ms) of a mono detector")
     f.add_argument("source", help="folder of images, video file, LEFT,RIGHT videos or 'vishap synth' folder (left view)")
     f.add_argument("--labels", required=True, help="CSV with columns frame,u,v (u,v empty when the tip is hidden)")
-    f.add_argument("--detector", default="geometric", help="registered detector name (default: geometric)")
+    f.add_argument("--detector", default=None,
+                   help="registered detector name (default: hybrid with the 'learned' extra, else geometric)")
     f.add_argument("--out", default=None, help="folder for per-frame results (frames.csv) and overlays of the worst frames")
     f.add_argument("--sequence", action="store_true",
                    help="treat a folder of images as consecutive frames (default: independent photos)")
@@ -38,10 +39,17 @@ def _vision(args: argparse.Namespace) -> int:
 
 
 def _fingertip(args: argparse.Namespace) -> int:
-    from vishap.vision.detector import make_detector
+    import sys
+
+    from vishap.vision.detector import make_default_detector, make_detector
     from vishap.vision.fingertip_eval import evaluate_fingertip, write_fingertip_results
 
-    det = make_detector(args.detector)
+    if args.detector is None:
+        det, note = make_default_detector()
+        if note:
+            print(f"vishap eval fingertip: {note}", file=sys.stderr)
+    else:
+        det = make_detector(args.detector)
     rec, rows = evaluate_fingertip(args.source, args.labels, det, sequence=True if args.sequence else None)
     if args.out:
         write_fingertip_results(args.out, rec, rows, args.source)

@@ -29,7 +29,8 @@ import numpy as np
 
 from vishap._core.errors import ConfigError
 
-__all__ = ["MonoDetection", "MonoDetector", "register_detector", "make_detector", "detector_names"]
+__all__ = ["MonoDetection", "MonoDetector", "register_detector", "make_detector", "detector_names",
+           "DEFAULT_DETECTORS", "make_default_detector"]
 
 
 @dataclass
@@ -93,3 +94,20 @@ def make_detector(name: str, **options) -> MonoDetector:
     if name not in _REGISTRY:
         raise ConfigError(f"detector {name!r}: unknown (known: {', '.join(sorted(_REGISTRY)) or 'none'})")
     return _REGISTRY[name][0](**options)
+
+
+#: The default detector, best first: the hybrid (learned hand finder + the paper's cap fit and
+#: Kalman tracker) when the ``learned`` extra is installed, else the classical geometric detector.
+DEFAULT_DETECTORS: tuple[str, ...] = ("hybrid", "geometric")
+
+
+def make_default_detector(**options) -> tuple[MonoDetector, str]:
+    """The first of :data:`DEFAULT_DETECTORS` that can be built, and a note ("" when it is the first)
+    saying why an earlier one was passed over."""
+    notes = []
+    for name in DEFAULT_DETECTORS:
+        try:
+            return make_detector(name, **options), "; ".join(notes)
+        except ConfigError as exc:
+            notes.append(f"detector {name!r} unavailable ({exc.reason}): using the next one")
+    raise ConfigError("no default detector can be built: " + "; ".join(notes))
