@@ -22,7 +22,7 @@ test: setup
 	$(PY) -m pytest -q -n 2
 
 bench: setup
-	$(VENV)/bin/vishap bench all --out $(OUT)/bench
+	$(VENV)/bin/vishap bench all --overwrite --out $(OUT)/bench
 
 clean:
 	rm -rf $(OUT) .pytest_cache
