@@ -146,8 +146,6 @@ def test_saturate(F, limit):
     assert fuzz.check_saturate(F, limit) is None
 
 
-@pytest.mark.xfail(strict=True, reason="vishap/runtime/safety.py TargetGuard: a target stamped in the future is "
-                                       "tracked; non-finite box/retreat/thresholds are accepted (issue 17)")
 @settings(max_examples=300, **_KNOWN)
 @given(inputs=st.lists(st.tuples(st.just(0.001), _vec, st.one_of(_hostile, st.sampled_from([-0.01, -1.0, 0.01])),
                                  st.one_of(st.just(0.9), _hostile)), min_size=1, max_size=5),

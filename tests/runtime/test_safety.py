@@ -55,3 +55,24 @@ def test_recovery_returns_to_tracking_and_counts_episodes():
     assert g.counts["finger_lost"] == 2
     g.count(Fault.FRAME_DROPPED)
     assert g.counts["frame_dropped"] == 1
+
+
+def test_a_target_stamped_in_the_future_is_held_not_tracked():
+    g = guard()
+    good = g.decide(1.0, [0.1, 0.0, 0.0], made_at=1.0, confidence=0.9)
+    assert good.action == "track"
+    d = g.decide(1.001, [0.12, 0.0, 0.0], made_at=2.0, confidence=0.9)  # a clock fault
+    assert d.action == "hold" and d.fault is Fault.FUTURE_STAMP
+    assert np.allclose(d.X_d, good.X_d) and g.counts["future_stamp"] == 1
+
+
+@pytest.mark.parametrize("field, value", [("retreat_point", (np.nan, 0.0, 0.0)), ("box_hi", (np.inf, 0.1, 0.1)),
+                                          ("stale_after_s", np.nan), ("retreat_after_s", np.inf),
+                                          ("min_confidence", np.nan), ("min_confidence", 1.5)])
+def test_non_finite_or_out_of_range_settings_are_refused_by_name(field, value):
+    from vishap._core.errors import ConfigError
+
+    kw = {"box_lo": LO, "box_hi": HI, "retreat_point": HOME, field: value}
+    with pytest.raises(ConfigError) as exc:
+        TargetGuard(**kw)
+    assert exc.value.field in (field, "box")

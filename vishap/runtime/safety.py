@@ -6,7 +6,8 @@ confidence) and whether a camera-to-robot calibration is loaded. Output is the t
 controller may use and the action taken:
 
 - ``track``   the input is fresh, finite, confident and calibrated: use it (clamped to the box);
-- ``hold``    the input is stale, non-finite or the finger is lost: keep the last good target;
+- ``hold``    the input is stale, non-finite, stamped later than now (a clock fault) or the finger
+              is lost: keep the last good target;
 - ``retreat`` the trouble has lasted longer than ``retreat_after_s``, or there is no calibration:
               move to the retreat point, away from where a finger could be.
 
@@ -20,6 +21,8 @@ from enum import Enum
 
 import numpy as np
 
+from vishap._core.errors import ConfigError
+
 __all__ = ["Fault", "GuardDecision", "TargetGuard"]
 
 
@@ -29,6 +32,7 @@ class Fault(str, Enum):
     NAN_INPUT = "nan_input"
     CALIBRATION_MISSING = "calibration_missing"
     FRAME_DROPPED = "frame_dropped"
+    FUTURE_STAMP = "future_stamp"      # a target made later than the servo's now: clocks disagree
 
 
 @dataclass(frozen=True)
@@ -54,8 +58,15 @@ class TargetGuard:
         self.box_lo = np.asarray(self.box_lo, float).reshape(3)
         self.box_hi = np.asarray(self.box_hi, float).reshape(3)
         self.retreat_point = np.clip(np.asarray(self.retreat_point, float).reshape(3), self.box_lo, self.box_hi)
-        if not (np.all(np.isfinite(self.box_lo)) and np.all(self.box_hi > self.box_lo)):
-            raise ValueError("TargetGuard: the box needs finite lower corner below the upper corner")
+        if not (np.all(np.isfinite(self.box_lo)) and np.all(np.isfinite(self.box_hi)) and np.all(self.box_hi > self.box_lo)):
+            raise ConfigError("TargetGuard: the box needs finite corners, the lower below the upper", field="box")
+        if not np.all(np.isfinite(self.retreat_point)):
+            raise ConfigError(f"TargetGuard: retreat point {self.retreat_point.tolist()} is not finite", field="retreat_point")
+        for name, lo, hi in (("stale_after_s", 0.0, math.inf), ("retreat_after_s", 0.0, math.inf),
+                             ("min_confidence", 0.0, 1.0)):
+            v = float(getattr(self, name))
+            if not (math.isfinite(v) and lo <= v <= hi):
+                raise ConfigError(f"TargetGuard: {name} = {v!r}, expected a finite value in [{lo}, {hi}]", field=name)
         self._lo = tuple(float(v) for v in self.box_lo)
         self._hi = tuple(float(v) for v in self.box_hi)
         self._retreat = tuple(float(v) for v in self.retreat_point)
@@ -95,6 +106,8 @@ class TargetGuard:
             fault = Fault.CALIBRATION_MISSING
         elif not (isfinite(x) and isfinite(y) and isfinite(z) and isfinite(made_at) and isfinite(confidence)):
             fault = Fault.NAN_INPUT
+        elif made_at > t:
+            fault = Fault.FUTURE_STAMP
         elif t - made_at > self.stale_after_s:
             fault = Fault.VISION_STALLED
         elif confidence < self.min_confidence:
