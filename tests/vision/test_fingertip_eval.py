@@ -164,3 +164,10 @@ def test_cli_json_and_outputs_never_overwrite(photo_folder, tmp_path, capsys):
     assert main(["eval", "fingertip", str(d), "--labels", str(lab), "--out", str(out)]) == 2
     assert "already holds results" in capsys.readouterr().err
     assert (out / "frames.csv").read_text() == before
+
+
+def test_no_visible_tip_gives_undefined_rates_not_zero():
+    rec = score_fingertips([], [True, False])
+    assert rec["detection_rate"] is None and rec["pck_30"] is None and rec["median_error_px"] is None
+    assert rec["hidden_frames"] == 2 and rec["false_detections"] == 1
+

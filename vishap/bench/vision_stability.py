@@ -124,7 +124,7 @@ def _run_method(method, rig, frames, gt, occ0, n_occ):
             e3.append(np.linalg.norm(est.p_cam - tip))
             if n_occ and recover is None and i >= occ0 + n_occ:
                 recover = i - (occ0 + n_occ)
-    return {"detection_rate": det / max(vis, 1),
+    return {"detection_rate": det / vis if vis else None,
             "tip2d_rms_px": float(np.sqrt(np.mean(np.square(e2)))) if e2 else None,
             "tip3d_rms_mm": float(np.sqrt(np.mean(np.square(e3))) * 1e3) if e3 else None,
             "track_losses": losses, "recovery_frames": recover if n_occ else None}

@@ -171,7 +171,8 @@ def score(estimates, gt: dict, seg_counts: np.ndarray, *, keep_tracks: bool = Fa
         "tip3d_rms_mm": float(np.sqrt(np.mean(e3 ** 2)) * 1e3) if len(e3) else None,
         "tip3d_median_mm": float(np.median(e3) * 1e3) if len(e3) else None,
         "depth_range_m": [float(z.min()), float(z.max())] if len(z) else None,
-        "detection_rate": float(np.count_nonzero(visible & found) / max(1, np.count_nonzero(visible))),
+        "detection_rate": (float(np.count_nonzero(visible & found) / np.count_nonzero(visible))
+                           if np.any(visible) else None),  # no frame shows the tip: undefined, not 0
         "visible_frames": int(np.count_nonzero(visible)),
         "hidden_frames": hidden,
         "false_detections": int(np.count_nonzero(~visible & ~learning & found)),

@@ -177,9 +177,9 @@ def score_fingertips(errors: list[float | None], hidden_found: list[bool] | None
     """Scores from per-frame errors (px; None = no detection) of frames with a visible tip."""
     n = len(errors)
     err = np.array([e for e in errors if e is not None], dtype=np.float64)
-    rec = {"frames": n, "detection_rate": err.size / n if n else 0.0}
+    rec = {"frames": n, "detection_rate": err.size / n if n else None}
     for r in PCK_RADII_PX:
-        rec[f"pck_{r}"] = float(np.sum(err <= r)) / n if n else 0.0
+        rec[f"pck_{r}"] = float(np.sum(err <= r)) / n if n else None
     rec["median_error_px"] = float(np.median(err)) if err.size else None
     if hidden_found is not None:
         rec["hidden_frames"] = len(hidden_found)
