@@ -4,11 +4,9 @@ import json
 import numpy as np
 import pytest
 
-pytest.importorskip("vishap.sim.renderer", reason="the synthetic renderer (vishap.sim) is not installed")
-
-from vishap._core.errors import CalibrationError  # noqa: E402
-from vishap.cli import main  # noqa: E402
-from vishap.registration import camera_robot  # noqa: E402
+from vishap._core.errors import CalibrationError
+from vishap.cli import main
+from vishap.registration import camera_robot
 
 
 @pytest.mark.render

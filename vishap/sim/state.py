@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["TIP_RADIUS_M", "PassiveObject", "Occluder", "FrameState", "RenderedPair", "LABELS"]
+from vishap.world.finger import TIP_RADIUS_M  # the one home of the cap radius (re-exported)
 
-TIP_RADIUS_M = 0.008  # radius of the index fingertip's hemispherical cap (adult index ≈ 16 mm wide)
+__all__ = ["TIP_RADIUS_M", "PassiveObject", "Occluder", "FrameState", "RenderedPair", "LABELS"]
 
 #: label values of the per-pixel ground truth
 LABELS = {"background": 0, "skin": 1, "device": 2, "object": 3}

@@ -31,7 +31,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-__all__ = ["FingertipConfig", "Fingertip", "detect_fingertip", "detect_fingertips", "refine_with_background", "square_ring_offsets", "fit_circle"]
+__all__ = ["FingertipConfig", "Fingertip", "detect_fingertip", "detect_fingertips", "square_ring_offsets", "fit_circle"]
 
 
 @dataclass(frozen=True)
@@ -286,69 +286,3 @@ def _finger_direction(mask: np.ndarray, c: np.ndarray, rho: float, fallback: np.
     d = _UNIT[skin].sum(axis=0)
     n = np.hypot(*d)
     return d / n if n > 0 else fallback
-
-
-def refine_with_background(image: np.ndarray, background: np.ndarray, mask: np.ndarray, tip: Fingertip,
-                           r2: int | None = None) -> bool:
-    """Refine ``tip.uv`` on colour instead of the binary mask (all arrays in the same coordinates).
-
-    Each pixel near the cap is unmixed between the learned background colour ``B`` (scaled by the
-    local gain, for lighting changes) and the skin colour ``S`` of the cap's interior:
-    ``alpha = ((I - gB)·(S - gB)) / |S - gB|²``. Edge points are the sub-pixel crossings of
-    ``alpha = 0.5`` between neighbouring pixels; the cap circle is fitted to them. Returns True when
-    the refinement was applied (enough contrast and points), False otherwise (tip unchanged).
-    """
-    if not tip.found or tip.cap_radius_px <= 0:
-        return False
-    rad = tip.cap_radius_px
-    r2 = int(np.ceil(rad)) + 1 if r2 is None else r2
-    h, w = mask.shape
-    half = int(np.ceil(rad)) + 4
-    cx, cy = tip.uv
-    x0, y0 = int(max(0, np.floor(cx) - half)), int(max(0, np.floor(cy) - half))
-    x1, y1 = int(min(w, np.floor(cx) + half + 2)), int(min(h, np.floor(cy) + half + 2))
-    I = image[y0:y1, x0:x1].astype(np.float32)
-    B = background[y0:y1, x0:x1].astype(np.float32)
-    m = mask[y0:y1, x0:x1] > 0
-    yy, xx = np.mgrid[y0:y1, x0:x1]
-    dist = np.hypot(xx - cx, yy - cy)
-    inside = m & (dist <= 0.6 * rad)
-    outside = ~m & (dist >= rad + 1.5)
-    if inside.sum() < 5 or outside.sum() < 5:
-        return False
-    bsum = (B[outside] ** 2).sum()
-    g = float((I[outside] * B[outside]).sum() / bsum) if bsum > 0 else 1.0
-    Bg = B * g
-    S = np.median(I[inside], axis=0)
-    D = S[None, None, :] - Bg
-    den = (D * D).sum(axis=2)
-    ok = den > 400.0  # at least ~20 grey levels of contrast between skin and background
-    alpha = np.where(ok, ((I - Bg) * D).sum(axis=2) / np.maximum(den, 1e-6), np.nan)
-    a = alpha - 0.5
-    pts = []
-    for (da, ax) in ((a[:, :-1], 1), (a[:-1, :], 0)):
-        db = a[:, 1:] if ax == 1 else a[1:, :]
-        cross = (da * db < 0) & np.isfinite(da) & np.isfinite(db)
-        ys, xs = np.nonzero(cross)
-        frac = da[ys, xs] / (da[ys, xs] - db[ys, xs])
-        if ax == 1:
-            pts.append(np.column_stack([x0 + xs + frac, y0 + ys]))
-        else:
-            pts.append(np.column_stack([x0 + xs, y0 + ys + frac]))
-    pts = np.concatenate(pts).astype(np.float64)
-    d = tip.direction
-    c = tip.uv.astype(np.float64)
-    for _ in range(2):
-        rel = pts - c
-        dd = np.hypot(rel[:, 0], rel[:, 1])
-        sel = (rel @ d <= 0.0) & (np.abs(dd - rad) <= 2.0)
-        fit = fit_circle(pts[sel])
-        if fit is None or sel.sum() < 8:
-            return False
-        c_new, rad_new = fit
-        if np.hypot(*(c_new - tip.uv)) > 2.0 or abs(rad_new - rad) > 2.0:
-            return False
-        c, rad = c_new, rad_new
-    tip.uv = c
-    tip.cap_radius_px = rad
-    return True

@@ -17,12 +17,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from vishap._core.errors import ShapeError, VisionError
-from vishap.vision.fingertip import FingertipConfig, detect_fingertips, refine_with_background
+from vishap.vision.fingertip import FingertipConfig, detect_fingertips
 from vishap.vision.rig import StereoRig
 from vishap.vision.segment import SegmentConfig, Segmenter, snap_roi
 from vishap.vision.skin_model import SkinModel
 from vishap.vision.stereo import StereoConfig, StereoPoint, triangulate_rectified_tip, triangulate_tip
 from vishap.vision.track import TipTracker, TrackerConfig
+from vishap.world.finger import TIP_RADIUS_M
 from vishap.vision.view import search_tips
 
 __all__ = ["PipelineConfig", "TipEstimate", "VisionPipeline"]
@@ -37,7 +38,7 @@ class PipelineConfig:
     tip_circle_m: float = 0.0048    # radius of the test circle at the fingertip (0.6 of an 8 mm cap): K = f · tip_circle_m
     z_default_m: float = 0.6        # depth used for r = K/z before the first 3-D fix
     z_search_m: tuple[float, ...] = (0.45, 0.8)  # other depths tried when a full-frame search fails
-    finger_radius_m: float = 0.008  # radius of the fingertip's cap (picks the index tip among candidates)
+    finger_radius_m: float = TIP_RADIUS_M  # radius of the fingertip's cap (picks the index tip among candidates)
     max_candidates: int = 4         # fingertip candidates per view in a full-frame search
     acquire_radius_band: tuple[float, float] = (0.75, 1.06)  # cap radius / finger_radius_m accepted when
     #   (re)acquiring over the full frame; measured on renders: index tip 5–95 % 0.75–1.04, thumb/knuckles median 1.07
@@ -48,7 +49,6 @@ class PipelineConfig:
     #   behind the device's plate it can jump to the thumb
     recheck_young_frames: int = 3   # … every this many frames while the 3-D track is younger than recheck_frames
     #   frames: a lock on the wrong finger is taken when a track starts (the index hidden, a knuckle found)
-    colour_refine: bool = False     # cap fit on colour unmixed against the background (measured worse on shaded renders)
     filtered_output: bool = True    # report Kalman-filtered tips (else the raw detections)
     full_search_on_miss: bool = True  # a miss in the window triggers a full-frame search of that view
     max_speed_m_s: float = 2.0      # gate of that search: how far the finger may have moved since its last hit
@@ -452,11 +452,6 @@ class VisionPipeline:
         te = time.perf_counter()
         timings[f"segment_{side}_ms"] = timings.get(f"segment_{side}_ms", 0.0) + (td - ts) * 1e3
         timings[f"detect_{side}_ms"] = timings.get(f"detect_{side}_ms", 0.0) + (te - td) * 1e3
-        if cfg.colour_refine and tips:
-            x0, y0, x1, y1 = roi
-            img_roi, bg_roi = image[y0:y1, x0:x1], seg.mean_image[y0:y1, x0:x1]
-            for tip in tips[:2] if mode != "tracked" else tips:
-                refine_with_background(img_roi, bg_roi, mask, tip)
         for tip in tips:
             tip.uv = tip.uv + roi[:2]
         return tips, mode
