@@ -66,7 +66,7 @@ def test_a_target_stamped_in_the_future_is_held_not_tracked():
     assert np.allclose(d.X_d, good.X_d) and g.counts["future_stamp"] == 1
 
 
-@pytest.mark.parametrize("field, value", [("retreat_point", (np.nan, 0.0, 0.0)), ("box_hi", (np.inf, 0.1, 0.1)),
+@pytest.mark.parametrize("field, value", [("retreat_point", (np.nan, 0.0, 0.0)), ("retreat_point", (0.2, 0.0, -np.inf)), ("box_hi", (np.inf, 0.1, 0.1)),
                                           ("stale_after_s", np.nan), ("retreat_after_s", np.inf),
                                           ("min_confidence", np.nan), ("min_confidence", 1.5)])
 def test_non_finite_or_out_of_range_settings_are_refused_by_name(field, value):

@@ -57,11 +57,12 @@ class TargetGuard:
     def __post_init__(self):
         self.box_lo = np.asarray(self.box_lo, float).reshape(3)
         self.box_hi = np.asarray(self.box_hi, float).reshape(3)
-        self.retreat_point = np.clip(np.asarray(self.retreat_point, float).reshape(3), self.box_lo, self.box_hi)
+        retreat = np.asarray(self.retreat_point, float).reshape(3)
+        if not np.all(np.isfinite(retreat)):
+            raise ConfigError(f"TargetGuard: retreat point {retreat.tolist()} is not finite", field="retreat_point")
         if not (np.all(np.isfinite(self.box_lo)) and np.all(np.isfinite(self.box_hi)) and np.all(self.box_hi > self.box_lo)):
             raise ConfigError("TargetGuard: the box needs finite corners, the lower below the upper", field="box")
-        if not np.all(np.isfinite(self.retreat_point)):
-            raise ConfigError(f"TargetGuard: retreat point {self.retreat_point.tolist()} is not finite", field="retreat_point")
+        self.retreat_point = np.clip(retreat, self.box_lo, self.box_hi)
         for name, lo, hi in (("stale_after_s", 0.0, math.inf), ("retreat_after_s", 0.0, math.inf),
                              ("min_confidence", 0.0, 1.0)):
             v = float(getattr(self, name))
