@@ -55,3 +55,21 @@ def test_recovery_returns_to_tracking_and_counts_episodes():
     assert g.counts["finger_lost"] == 2
     g.count(Fault.FRAME_DROPPED)
     assert g.counts["frame_dropped"] == 1
+
+
+def test_a_finger_lost_while_it_presses_the_device_is_held_until_it_lets_go():
+    g = guard()
+    g.decide(0.999, [0.25, 0.01, -0.12], made_at=0.999, confidence=1.0)
+    lost = dict(X_d=[0.2, 0, -0.1], confidence=0.0)
+    for t in np.arange(1.0, 2.0, 0.001):  # vision blind for 1 s, the device pushed in all along
+        d = g.decide(float(t), made_at=float(t), pressed=True, **lost)
+        assert d.action == "hold" and d.fault is Fault.FINGER_LOST
+    for t in np.arange(2.0, 2.299, 0.001):  # let go: the retreat timer starts now
+        assert g.decide(float(t), made_at=float(t), pressed=False, **lost).action == "hold"
+    assert g.decide(2.301, made_at=2.301, pressed=False, **lost).action == "retreat"
+    # a stalled vision process is a fault of the system: it retreats even while pressed
+    g = guard()
+    g.decide(0.0, [0.25, 0.01, -0.12], made_at=0.0, confidence=1.0)
+    for t in np.arange(0.001, 0.45, 0.001):
+        d = g.decide(float(t), [0.25, 0.01, -0.12], made_at=0.0, confidence=1.0, pressed=True)
+    assert d.action == "retreat" and d.fault is Fault.VISION_STALLED
