@@ -96,3 +96,30 @@ def test_servo_step_renders_the_law_only_while_announced_and_tracking_or_holding
         tk = step.tick(k * 1e-3, off)
         assert tk.action == "retreat" and tk.F_law is None and tk.lambda_state == 0
     assert np.allclose(step.controller.lambda_robot, np.eye(3))  # blended back to free motion
+
+
+def test_servo_step_holds_a_pressed_device_while_vision_has_lost_the_finger_and_retreats_once_let_go():
+    from vishap.robot import kinematics
+    from vishap.runtime.assembly import make_servo_step, open_device
+
+    scene = load_scene("wall")
+    dev = open_device("sim", passive_object=scene.passive_object.for_mujoco())
+    step = make_servo_step(dev, scene, retreat_after_s=0.3)
+    X_ee = tuple(scene.objects[0].centre - step.mount)
+    dev.reset(kinematics.ik(np.asarray(X_ee)))
+    push = np.array([0.0, 0.0, -1.0])  # a finger pressing 1 N on the face
+    seen = lambda k, c: TargetRecord(k + 1, X_ee, k * 1e-3, c, True, True, 0, True, True)  # noqa: E731
+    for k in range(300):  # tracking, the force ramped up
+        tk = step.tick(k * 1e-3, seen(k, 1.0))
+    for k in range(300, 600):  # the finger presses, seen
+        dev.apply_tip_force(push)
+        tk = step.tick(k * 1e-3, seen(k, 1.0))
+    assert tk.action == "track" and tk.pressed and tk.F_law is not None
+    for k in range(600, 1600):  # vision loses the finger for 1 s; it keeps pressing
+        dev.apply_tip_force(push)
+        tk = step.tick(k * 1e-3, seen(k, 0.0))
+        assert tk.action == "hold" and tk.F_law is not None, k
+    dev.apply_tip_force(np.zeros(3))  # the finger lets go, still unseen
+    actions = [step.tick(k * 1e-3, seen(k, 0.0)).action for k in range(1600, 2100)]
+    assert actions[0] == "hold" and actions[-1] == "retreat"
+    assert 300 <= actions.index("retreat") <= 400  # 0.3 s after the device is let go (it rises out first)
