@@ -107,3 +107,11 @@ def test_device_ready_needs_a_still_device_on_the_surface_under_the_finger():
     assert not device_ready(obj, low, v, touch, vf, half, dt)
     assert not device_ready(obj, p, v, c + np.array([0.012, 0.0, 0.0]), vf, half, dt)  # 8 mm from the edge
     assert not device_ready(obj, p[-10:], v[-10:], touch, vf[-10:], half, dt)  # too short a record
+
+
+def test_an_approach_reports_whether_the_device_was_ready():
+    scene = load_scene("wall")
+    tr = _traj(scene, "wall", [0.0, 0.0, 0.05], 0.1)
+    r = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s), vision=CLEAN, stop_after_contact_s=0.02,
+                     record=True)
+    assert isinstance(r.ready, bool) and isinstance(r.log, dict)  # the flag, not another field's value

@@ -107,8 +107,8 @@ class ApproachResult:
     press_force_n: np.ndarray | None = None  # device normal force (N) in the press
     through_object: bool = False  # the device's path cut through a non-subject object
     slide_friction_ratio: float | None = None  # median |F_t| / F_n while sliding (fabric: ≈ μ_k)
-    ready: bool = False  # the device was ready at the first touch (:func:`device_ready`)
     log: dict | None = None
+    ready: bool = False  # the device was ready at the first touch (:func:`device_ready`)
 
 
 def make_device(scene: Scene, *, substeps: int = 1, policy: str = "interpolate", travel: bool = True):
