@@ -111,3 +111,20 @@ def test_bad_settings_name_the_field(kw):
     with pytest.raises(ConfigError) as e:
         ObjectGainScheduler(**kw)
     assert next(iter(kw)) in str(e.value)
+
+
+def test_the_surface_handover_starts_before_a_predicted_touch_and_a_resume_in_contact_keeps_the_force():
+    s = ObjectGainScheduler(dt=DT)
+    s.set_subject((0.0, 0.0, 0.0), np.eye(3))
+    s.step(0.0, -0.0002, True, False, "track", touch_in_s=0.2)
+    assert s.state == FREE  # the finger is still far (in time): the servo holds the surface
+    s.step(0.001, -0.0002, True, False, "track", touch_in_s=0.02)
+    assert s.state == SURFACE and s.changing  # it lands within the blend: hand the normal to the law now
+    assert not s.law_active  # no force above the surface
+    s.step(0.002, -0.003, True, False, "track", touch_in_s=0.01)
+    assert s.state == SURFACE  # the dwell keeps a brief excursion from flipping Λ back
+    s2 = ObjectGainScheduler(dt=DT, force_ramp_s=0.1)
+    s2.set_subject((0.0, 0.0, 0.0), np.eye(3))
+    acts = ["track"] * 200 + ["hold"] * 100 + ["track"] * 50
+    _, sc, states = _run(s2, np.full(len(acts), 0.002), actions=acts)
+    assert states[299] != FREE and np.all(sc[150:] == 1.0)  # held and resumed on the finger: no force dip

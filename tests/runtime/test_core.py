@@ -34,26 +34,41 @@ def test_scene_step_maps_the_cap_centre_to_the_pad_and_the_target_to_the_end_eff
     assert not rec.calibrated and rec.armed and inter is None and not np.isfinite(rec.X_ee).any()
 
 
-def test_contact_renderer_gates_the_law_and_the_object_gain():
+def test_contact_renderer_gates_the_law_and_schedules_the_object_gain():
     scene = load_scene("wall")
     c = ContactRenderer(scene.objects, max_force_n=8.5, engage_m=0.0003)
-    assert c.update(np.array([0.2, 0.0, -0.151]), np.zeros(3), 0, False)[0] is None  # nothing announced
-    F, lam, R, changed = c.update(np.array([0.2, 0.0, -0.1501]), np.zeros(3), 0, True)
-    assert F[2] == pytest.approx(800.0 * 0.0001) and lam == (1.0, 1.0, 0.0) and changed  # sagging: lateral servo
-    F, lam, R, changed = c.update(np.array([0.2, 0.0, -0.152]), np.zeros(3), 0, True)
-    assert F[2] == pytest.approx(1.6) and lam == (0.0, 0.0, 0.0) and np.allclose(R, np.eye(3))  # pressed: slide
-    F, lam, _, changed = c.update(np.array([0.2, 0.0, -0.149]), np.zeros(3), 0, True)
-    assert F is None and lam is None and changed  # above the surface: free motion again
+    z0 = np.zeros(3)
+
+    def at(z):
+        return np.array([0.2, 0.0, z])
+
+    F, L, scale = c.update(0.0, at(-0.151), z0, 0, False, False, "track")
+    assert F is None and c.state_code == 0 and np.allclose(L, np.eye(3))  # nothing announced: free
+    F, L, _ = c.update(0.001, at(-0.1502), z0, 0, True, True, "track")
+    assert F[2] == pytest.approx(800.0 * 0.0002) and c.state_code == 1  # under the surface: the law acts
+    assert c.gain.changing and L[2][2] == 1.0  # Λ blends toward diag(1, 1, 0), never in one tick
+    F, L, _ = c.update(0.010, at(-0.152), z0, 0, True, True, "track")
+    assert F[2] == pytest.approx(1.6) and c.state_code == 1  # pushed in, but the dwell holds the state
+    assert 0.0 < L[2][2] < 1.0 and L[0][0] == 1.0
+    for k in range(11, 100):
+        F, L, _ = c.update(k * 1e-3, at(-0.152), z0, 0, True, True, "track")
+    assert c.state_code == 2 and np.allclose(L, np.zeros((3, 3)))  # engaged: the wall's Λ, blend done
+    assert c.gain.n_changes == 2  # free → surface → engaged: two changes in the approach
+    F, L, _ = c.update(0.100, at(-0.1495), z0, 0, True, True, "track")
+    assert F is None and c.state_code == 2  # a hair above the surface: no force, but no flip of Λ yet
+    F, L, _ = c.update(0.101, at(-0.152), z0, 0, True, True, "retreat")
+    assert F is None and c.state_code == 0  # the guard retreats: free at once (the blend follows)
     panel = load_scene("panel")
     k = [o.name for o in panel.objects].index("key_b")
     kb = ContactRenderer(panel.objects, max_force_n=8.5)
-    F, lam, _, _ = kb.update(np.array([0.23, 0.04, -0.152]), np.zeros(3), k, True)
-    assert lam == (1.0, 1.0, 0.0) and F[2] > 0  # a key stays put laterally
+    for i in range(100):
+        F, L, _ = kb.update(i * 1e-3, np.array([0.23, 0.04, -0.152]), z0, k, True, True, "track")
+    assert np.allclose(np.diag(L), (1.0, 1.0, 0.0)) and F[2] > 0  # a key stays put laterally
     # the subject's own law, saturated at the device's force limit
-    F, _, _, _ = kb.update(np.array([0.23, 0.04, -0.151]), np.zeros(3), k, True)
+    F, _, _ = kb.update(0.1, np.array([0.23, 0.04, -0.151]), z0, k, True, True, "track")
     assert F[2] == pytest.approx(500.0 * 0.001)
     small = ContactRenderer(scene.objects, max_force_n=1.0)
-    assert np.linalg.norm(small.update(np.array([0.2, 0.0, -0.160]), np.zeros(3), 0, True)[0]) == pytest.approx(1.0)
+    assert np.linalg.norm(small.update(0.0, at(-0.160), z0, 0, True, True, "track")[0]) == pytest.approx(1.0)
 
 
 def test_servo_step_renders_the_law_only_while_announced_and_tracking_or_holding():
@@ -67,12 +82,44 @@ def test_servo_step_renders_the_law_only_while_announced_and_tracking_or_holding
     X_ee = tuple(p_in - step.mount)
     dev.reset(kinematics.ik(np.asarray(X_ee)))
     on = TargetRecord(1, X_ee, 0.0, 1.0, True, True, 0, True, True)
-    tk = step.tick(0.0, on)
+    for k in range(101):
+        on.made_at = k * 1e-3
+        tk = step.tick(k * 1e-3, on)
     assert tk.action == "track" and tk.F_law is not None and tk.F_law[2] > 0
-    assert np.allclose(step.controller.lambda_robot, np.diag([0.0, 0.0, 0.0]))  # the wall's Λ is set
-    bad = TargetRecord(2, (np.nan,) * 3, 0.001, 1.0, True, True, 0, True, True)
-    tk = step.tick(0.001, bad)
+    assert tk.lambda_state == 2 and np.allclose(step.controller.lambda_robot, np.zeros((3, 3)))  # the wall's Λ
+    assert step.controller.force_scale == 1.0  # ramped up since tracking began
+    bad = TargetRecord(2, (np.nan,) * 3, 0.101, 1.0, True, True, 0, True, True)
+    tk = step.tick(0.101, bad)
     assert tk.action == "hold" and tk.F_law is not None  # holding keeps rendering the wall
-    off = TargetRecord(3, X_ee, 0.002, 1.0, False, True, 0, True, True)
-    tk = step.tick(0.002, off)
-    assert tk.action == "retreat" and tk.F_law is None and np.allclose(step.controller.lambda_robot, np.eye(3))
+    off = TargetRecord(3, X_ee, 0.102, 1.0, False, True, 0, True, True)
+    for k in range(102, 140):
+        tk = step.tick(k * 1e-3, off)
+        assert tk.action == "retreat" and tk.F_law is None and tk.lambda_state == 0
+    assert np.allclose(step.controller.lambda_robot, np.eye(3))  # blended back to free motion
+
+
+def test_servo_step_holds_a_pressed_device_while_vision_has_lost_the_finger_and_retreats_once_let_go():
+    from vishap.robot import kinematics
+    from vishap.runtime.assembly import make_servo_step, open_device
+
+    scene = load_scene("wall")
+    dev = open_device("sim", passive_object=scene.passive_object.for_mujoco())
+    step = make_servo_step(dev, scene, retreat_after_s=0.3)
+    X_ee = tuple(scene.objects[0].centre - step.mount)
+    dev.reset(kinematics.ik(np.asarray(X_ee)))
+    push = np.array([0.0, 0.0, -1.0])  # a finger pressing 1 N on the face
+    seen = lambda k, c: TargetRecord(k + 1, X_ee, k * 1e-3, c, True, True, 0, True, True)  # noqa: E731
+    for k in range(300):  # tracking, the force ramped up
+        tk = step.tick(k * 1e-3, seen(k, 1.0))
+    for k in range(300, 600):  # the finger presses, seen
+        dev.apply_tip_force(push)
+        tk = step.tick(k * 1e-3, seen(k, 1.0))
+    assert tk.action == "track" and tk.pressed and tk.F_law is not None
+    for k in range(600, 1600):  # vision loses the finger for 1 s; it keeps pressing
+        dev.apply_tip_force(push)
+        tk = step.tick(k * 1e-3, seen(k, 0.0))
+        assert tk.action == "hold" and tk.F_law is not None, k
+    dev.apply_tip_force(np.zeros(3))  # the finger lets go, still unseen
+    actions = [step.tick(k * 1e-3, seen(k, 0.0)).action for k in range(1600, 2100)]
+    assert actions[0] == "hold" and actions[-1] == "retreat"
+    assert 300 <= actions.index("retreat") <= 400  # 0.3 s after the device is let go (it rises out first)

@@ -66,7 +66,8 @@ def test_a_target_stamped_in_the_future_is_held_not_tracked():
     assert np.allclose(d.X_d, good.X_d) and g.counts["future_stamp"] == 1
 
 
-@pytest.mark.parametrize("field, value", [("retreat_point", (np.nan, 0.0, 0.0)), ("retreat_point", (0.2, 0.0, -np.inf)), ("box_hi", (np.inf, 0.1, 0.1)),
+@pytest.mark.parametrize("field, value", [("retreat_point", (np.nan, 0.0, 0.0)), ("retreat_point", (0.2, 0.0, -np.inf)),
+                                          ("box_hi", (np.inf, 0.1, 0.1)),
                                           ("stale_after_s", np.nan), ("retreat_after_s", np.inf),
                                           ("min_confidence", np.nan), ("min_confidence", 1.5)])
 def test_non_finite_or_out_of_range_settings_are_refused_by_name(field, value):
@@ -76,3 +77,21 @@ def test_non_finite_or_out_of_range_settings_are_refused_by_name(field, value):
     with pytest.raises(ConfigError) as exc:
         TargetGuard(**kw)
     assert exc.value.field in (field, "box")
+
+
+def test_a_finger_lost_while_it_presses_the_device_is_held_until_it_lets_go():
+    g = guard()
+    g.decide(0.999, [0.25, 0.01, -0.12], made_at=0.999, confidence=1.0)
+    lost = dict(X_d=[0.2, 0, -0.1], confidence=0.0)
+    for t in np.arange(1.0, 2.0, 0.001):  # vision blind for 1 s, the device pushed in all along
+        d = g.decide(float(t), made_at=float(t), pressed=True, **lost)
+        assert d.action == "hold" and d.fault is Fault.FINGER_LOST
+    for t in np.arange(2.0, 2.299, 0.001):  # let go: the retreat timer starts now
+        assert g.decide(float(t), made_at=float(t), pressed=False, **lost).action == "hold"
+    assert g.decide(2.301, made_at=2.301, pressed=False, **lost).action == "retreat"
+    # a stalled vision process is a fault of the system: it retreats even while pressed
+    g = guard()
+    g.decide(0.0, [0.25, 0.01, -0.12], made_at=0.0, confidence=1.0)
+    for t in np.arange(0.001, 0.45, 0.001):
+        d = g.decide(float(t), [0.25, 0.01, -0.12], made_at=0.0, confidence=1.0, pressed=True)
+    assert d.action == "retreat" and d.fault is Fault.VISION_STALLED

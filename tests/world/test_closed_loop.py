@@ -83,3 +83,35 @@ def test_closed_loop_runs_the_systems_servo_step():
     assert step.servo.travel is not None and step.servo.travel.ready  # the target went through the limiter
     assert step.guard.counts["finger_lost"] == 0 and step.last_action == "track"
     assert make_device(scene, travel=False).servo.travel is None
+
+
+def test_device_ready_needs_a_still_device_on_the_surface_under_the_finger():
+    from vishap.world.closed_loop import device_ready
+
+    obj = load_scene("wall").objects[0]
+    n, dt, half = obj.normal, 1e-3, 0.02
+    c = obj.centre.copy()
+    p = np.tile(c, (40, 1))
+    v = np.zeros((40, 3))
+    vf = np.tile(-0.1 * n, (40, 1))  # the finger coming straight down the normal
+    touch = c + np.array([0.005, -0.005, 0.0])
+    assert device_ready(obj, p, v, touch, vf, half, dt)
+    late = v.copy()
+    late[-5:] = 0.02 * n  # still moving along the normal 5 ms before the touch
+    assert not device_ready(obj, p, late, touch, vf, half, dt)
+    slide = v.copy()
+    slide[-10:, 0] = 0.03  # sliding sideways under a finger that does not
+    assert not device_ready(obj, p, slide, touch, vf, half, dt)
+    low = p.copy()
+    low[-1] = c - 0.001 * n  # its face 1 mm under the surface
+    assert not device_ready(obj, low, v, touch, vf, half, dt)
+    assert not device_ready(obj, p, v, c + np.array([0.012, 0.0, 0.0]), vf, half, dt)  # 8 mm from the edge
+    assert not device_ready(obj, p[-10:], v[-10:], touch, vf[-10:], half, dt)  # too short a record
+
+
+def test_an_approach_reports_whether_the_device_was_ready():
+    scene = load_scene("wall")
+    tr = _traj(scene, "wall", [0.0, 0.0, 0.05], 0.1)
+    r = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s), vision=CLEAN, stop_after_contact_s=0.02,
+                     record=True)
+    assert isinstance(r.ready, bool) and isinstance(r.log, dict)  # the flag, not another field's value

@@ -185,6 +185,7 @@ class ServoCycle:
             X_d=np.full(3, np.nan) if tk.X_ee is None else tk.X_ee + step.mount, guard=GUARD_CODES[tk.action],
             record_seq=rec.seq, F_cmd=F_cmd, F_pd=np.array(ctrl.F_pd, float),
             F_law=np.zeros(3) if tk.F_law is None else np.asarray(tk.F_law, float), law_active=tk.F_law is not None,
+            lambda_state=tk.lambda_state, force_scale=tk.force_scale, finger_m=tk.finger_m, pressed=tk.pressed,
             F_contact=F_on_finger, in_contact=bool(np.any(F_on_dev)), saturated=bool(ctrl.saturated),
             heat_n2=float(ctrl.heat), finger_point=pad, finger_velocity=v_pad,
             finger_depth=-float(obj.height(pad)), device_depth=-float(obj.height(p_dev)), tick_us=1e6 * dt_wall)

@@ -9,8 +9,8 @@ order and compares their outputs with the logged ones:
 - scene step (:class:`vishap.runtime.core.SceneStep`, the same code the run used): every scene
   update (the newest vision estimate, mapped by the logged calibration, with the device position of
   that update) → ``X_d``, ``depth``, ``subject``, ``imminent``, ``in_contact``; and at every servo tick
-  the servo step's force law (:class:`~vishap.runtime.core.ContactRenderer`) on the record that tick
-  used, the device state and the guard's action;
+  the servo step's force law and object-gain state (:class:`~vishap.runtime.core.ContactRenderer`)
+  on the record that tick used, the device state and the guard's action;
 - tactile: every tick's contact sample (:func:`vishap.apps.cycle.contact_sample`) → the renderer's
   drive signals and contact state.
 
@@ -113,14 +113,16 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
 
     # -- scene step and the servo step's force law, in the logged order ------------------------------
     from vishap.apps.loop import log_scene_row
-    from vishap.runtime.core import ContactRenderer, TargetRecord
+    from vishap.runtime.core import GUARD_CODES, ContactRenderer, TargetRecord, finger_approach
 
     scene = load_scene(cfg.scene)
     scene_step = make_scene_step(make_world(cfg, scene, rig, T_est), T_est)
-    contact = ContactRenderer(scene.objects, max_force_n=float(meta["force_limit_n"]))
+    contact = ContactRenderer(scene.objects, max_force_n=float(meta["force_limit_n"]), dt=1.0 / cfg.servo_hz)
+    action_of = {code: name for name, code in GUARD_CODES.items()}
     s, sv = ch.get("scene", {}), ch["servo"]
     records = {0: TargetRecord()}  # by sequence number; 0: the servo had no record yet
     F_law_new = np.zeros_like(sv["F_law"])
+    lam_new = np.zeros(len(sv["t"]))
     events = sorted([(float(t), 0, i) for i, t in enumerate(s.get("t", []))] +
                     [(float(t), 1, i) for i, t in enumerate(sv["t"])])
     for t, kind, i in events:
@@ -132,14 +134,19 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
             log_scene_row(new, t, rec, inter, p_pad, s["device_point"][i], mount, 0.0)
         else:
             rec = records[int(sv["record_seq"][i])]
-            F, _, _, _ = contact.update(sv["device_point"][i], sv["v_device"][i], rec.subject,
-                                        int(sv["guard"][i]) in (0, 1) and (rec.imminent or rec.in_contact))
+            t_i, p_i = float(sv["t"][i]), sv["device_point"][i]
+            _, touch_in = finger_approach(rec, t_i, p_i, None if rec.subject < 0 else scene.objects[rec.subject].normal)
+            F, _, _ = contact.update(t_i, p_i, sv["v_device"][i], rec.subject, rec.imminent, rec.in_contact,
+                                     action_of[int(sv["guard"][i])], touch_in)
             if F is not None:
                 F_law_new[i] = F
+            lam_new[i] = contact.state_code
     if len(s.get("t", [])):
         ns = new.channel("scene").arrays()
         report["world"] = compare(s, ns, ["finger_robot", "X_d", "depth", "imminent", "in_contact", "subject"], atol)
     report["world"] = {**report.get("world", {}), "F_law": compare({"F": sv["F_law"]}, {"F": F_law_new}, ["F"], atol)["F"]}
+    if "lambda_state" in sv:  # the object gain's state, from the same scheduler on the logged inputs
+        report["world"]["lambda_state"] = compare(sv, {"lambda_state": lam_new}, ["lambda_state"], atol)["lambda_state"]
 
     # -- tactile ----------------------------------------------------------------------------------
     tac = ch.get("tactile", {})

@@ -6,6 +6,10 @@ peak speeds 0.1–0.5 m/s, meets the MuJoCo PHANToM, presses, slides and leaves.
 * ``device_in_place_rate`` — share of approaches where the device was within ``in_place_mm`` of the
   ideal contact point when the finger touched; ``contact_lead_time_ms_*`` — how long it had been
   there; ``contact_position_error_mm`` — its distance from that point at the touch;
+* ``device_ready_rate`` — share of approaches where the device was *ready* at the touch (issue 16:
+  for 20 ms before it still along the normal, ≤ 10 mm/s, and ≤ 20 mm/s sideways relative to the
+  finger; its face within 0.5 mm of the virtual surface; the finger landing ≥ 10 mm inside the
+  face's edge; :func:`vishap.world.closed_loop.device_ready`), per speed as ``ready_rate``;
 * Fig. 6: ``wall_force_depth_r2`` (straight line of force against fingertip depth, pooled over
   the wall presses) and ``button_click_detected`` (two slopes and a force drop), with plots;
 * ``multi_object`` — the panel scene: subject at the touch, cuts through other objects;
@@ -72,12 +76,14 @@ def _summary(results, in_place_m):
         by_speed[f"{s:.1f}"] = {
             "approaches": len(rs),
             "in_place_rate": float(np.mean([r.in_place for r in rs])),
+            "ready_rate": float(np.mean([r.ready for r in rs])),
             "error_mm_median": _pct(e, 50),
             "error_mm_max": max(e) if e else None,
         }
     return {
         "approaches": len(results),
         "device_in_place_rate": float(np.mean([r.in_place for r in results])) if results else None,
+        "device_ready_rate": float(np.mean([r.ready for r in results])) if results else None,
         "device_in_place_rate_2mm": float(np.mean([r.contact_error_m is not None and r.contact_error_m <= 0.002 for r in results])),
         "touched_passive_object_rate": float(np.mean([r.touched for r in results])),
         "contact_lead_time_ms_min": min(leads) if leads else None,

@@ -12,7 +12,10 @@ ramps the servo force up after every hold or retreat and when tracking starts.
 States, and what moves between them (``depth`` is the device's depth under the subject's surface,
 positive inside; the law renders while the world announces an imminent or current interaction):
 
-* ``FREE`` (Λ = I) → ``SURFACE`` when the law acts and ``depth > surface_on_m``;
+* ``FREE`` (Λ = I) → ``SURFACE`` when the law acts and ``depth > surface_on_m``, or earlier, while
+  the device waits at the surface (``depth > −release_m``) and the finger is predicted to touch it
+  within ``ramp_s`` (``touch_in_s``): the blend then ends about when the finger lands, so the touch
+  meets the law alone rather than the position servo's stiffness and damping fading out under it;
 * ``SURFACE`` (Λ = diag(1, 1, 0): the law gives the normal force, the servo keeps the lateral
   position) → ``ENGAGED`` when ``depth > engage_m``;
 * ``ENGAGED`` (Λ = the mode's ``contact_gain``) → ``SURFACE`` only when ``depth < engage_m −
@@ -28,7 +31,7 @@ Each change blends linearly from the Λ in force at that tick to the new one ove
 
 The force scale multiplies the servo's PD and law force (never the gravity compensation). It is 0
 while the guard is idle (no finger seen yet), and restarts from 0 each time the guard starts or
-resumes tracking (after a hold or a retreat), rising linearly to 1 over ``force_ramp_s``, so the
+resumes tracking in free motion (after a hold or a retreat), rising linearly to 1 over ``force_ramp_s``, so the
 error built up against a target that jumped meanwhile is never delivered as a step. During a hold
 or retreat it keeps rising to 1 (the device must hold or leave). Resetting the travel limiter at
 the device's own position on resuming (``TravelLimiter.reset``) removes the rest of the jump.
@@ -139,12 +142,15 @@ class ObjectGainScheduler:
             self._begin(self.state, self._now, force=True)
 
     # -- per tick ----------------------------------------------------------------------------------
-    def step(self, t: float, depth_m: float, imminent: bool, in_contact: bool, action: str = "track"):
+    def step(self, t: float, depth_m: float, imminent: bool, in_contact: bool, action: str = "track",
+             touch_in_s: float = math.inf):
         """``(Λ 3×3 robot frame as a tuple of tuples, force scale in [0, 1])`` for servo time ``t``.
 
         ``depth_m``: the device's depth under the subject's surface (m, positive inside; NaN or
         None when there is no subject); ``imminent`` / ``in_contact``: the world's flags;
-        ``action``: the guard's (``"track"``, ``"hold"``, ``"retreat"``, ``"idle"``)."""
+        ``action``: the guard's (``"track"``, ``"hold"``, ``"retreat"``, ``"idle"``);
+        ``touch_in_s``: the predicted time until the tracked finger reaches the device's face (s;
+        infinite when unknown or not closing)."""
         self._now = t
         d = depth_m if depth_m is not None and math.isfinite(depth_m) else -math.inf
         announced = (imminent or in_contact) and action in _TRACKING and self._contact_gain is not None
@@ -153,7 +159,7 @@ class ObjectGainScheduler:
         if not announced or d < -self.release_m:
             new = FREE
         elif st == FREE:
-            new = SURFACE if d > self.surface_on_m else FREE
+            new = SURFACE if d > self.surface_on_m or (touch_in_s <= self.ramp_s and d > -self.release_m) else FREE
         elif st == SURFACE:
             new = ENGAGED if d > self.engage_m else SURFACE
         else:
@@ -177,7 +183,9 @@ class ObjectGainScheduler:
         if action == "idle":
             self._scale, self._scale_t0, self._last_action = 0.0, None, action
         else:
-            if self._scale_t0 is None or (action == "track" and self._last_action != "track"):
+            # a resume while the law renders the surface (the finger on the device) keeps the force:
+            # ramping it from 0 would drop the surface under the finger
+            if self._scale_t0 is None or (action == "track" and self._last_action != "track" and st == FREE):
                 self._scale_t0 = t
             self._last_action = action
             el = t - self._scale_t0

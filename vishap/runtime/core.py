@@ -32,17 +32,17 @@ import numpy as np
 
 from vishap.robot.device import DeviceState
 from vishap.robot.kinematics import tip_state_scalar
+from vishap.robot.object_gain import ENGAGED, FREE, SURFACE
 from vishap.runtime.safety import TargetGuard
 
 __all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "ServoStep", "ServoTick", "GUARD_CODES",
-           "RECORD_SIZE"]
+           "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
 
 #: the guard's action as logged (``idle``: no finger seen yet, the servo holds the arm where it is)
 GUARD_CODES = {"track": 0, "hold": 1, "retreat": 2, "idle": 3}
+#: the object gain's state as logged (``servo/lambda_state``)
+LAMBDA_CODES = {FREE: 0, SURFACE: 1, ENGAGED: 2}
 _NAN3 = (math.nan, math.nan, math.nan)
-_EYE3 = np.eye(3)
-#: object gain while the device sags a hair below the surface before the finger pushes it (lateral servo kept)
-_SHALLOW = (1.0, 1.0, 0.0)
 
 
 @dataclass
@@ -143,54 +143,86 @@ class SceneStep:
 
 
 class ContactRenderer:
-    """The subject's force law and object gain at the device's contact point (Eq. 8–9).
+    """The subject's force law and the object gain ᴼΛ at the device's contact point (Eq. 8–9).
 
-    The law acts while the record announces an imminent or current interaction, the guard tracks
-    or holds, and the device is under the subject's surface; λ_z is then 0 (the law gives the normal
-    force). The mode's lateral gains apply once the device is pushed in deeper than ``engage_m`` —
-    a device sagging a hair below the surface while it waits keeps its lateral servo. A law is reset
-    when its object stops being the subject and when the contact ends.
+    Λ and the servo's force scale come from :class:`~vishap.robot.object_gain.ObjectGainScheduler`
+    (free → surface → engaged with hysteresis, a dwell and ≥ 20 ms blends; the force ramps up when
+    tracking starts). The law acts while the scheduler renders the surface (an interaction is
+    announced, the guard tracks or holds, the device has gone under the surface) and the device is
+    under it. A law is reset when its object stops being the subject and when contact rendering ends.
     """
 
-    def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003):
+    def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003, dt: float = 0.001):
+        from vishap.robot.object_gain import ObjectGainScheduler
         from vishap.world.force_laws import make_law
 
         self.objects = list(objects)
         self.laws = [make_law(o, max_force_n=max_force_n) for o in self.objects]
-        self.engage_m = float(engage_m)
+        self.gain = ObjectGainScheduler(engage_m=engage_m, dt=dt)
         self.subject = -1
-        self.lam = None  # the object gain currently set (None: identity)
+        self.depth = math.nan  # the device's depth under the subject's surface at the last update (m)
 
     def reset(self) -> None:
         for law in self.laws:
             law.reset()
+        self.gain.reset()
+        self.gain.set_subject(None)
         self.subject = -1
-        self.lam = None
+        self.depth = math.nan
 
     @property
     def law(self):
         return None if self.subject < 0 else self.laws[self.subject]
 
-    def update(self, p_device, v_device, subject: int, announced: bool):
-        """``(F_law or None, Λ diagonal or None, R_robot_obj, Λ changed)`` for this tick."""
+    @property
+    def state_code(self) -> int:
+        """The object gain's state as logged: 0 free, 1 surface, 2 engaged."""
+        return LAMBDA_CODES[self.gain.state]
+
+    def update(self, t: float, p_device, v_device, subject: int, imminent: bool, in_contact: bool, action: str,
+               touch_in_s: float = math.inf):
+        """``(F_law or None, Λ robot frame 3×3, force scale)`` for servo time ``t``; ``touch_in_s``: the
+        predicted time until the tracked finger reaches the device's face (the scheduler's early handover)."""
+        gain = self.gain
         if subject != self.subject:
             if self.subject >= 0:
                 self.laws[self.subject].reset()
             self.subject = subject
+            if subject >= 0:
+                gain.set_subject(self.laws[subject].lambda_contact, self.objects[subject].R)
+            else:
+                gain.set_subject(None)
         law = self.law
-        F, lam, R = None, None, _EYE3
-        if law is not None and announced:
-            depth = law.depth(p_device)
-            if depth > 0.0:
-                F = law.force_robot(p_device, v_device)
-                lam = law.lambda_contact if depth > self.engage_m else _SHALLOW
-                R = self.objects[subject].R
-        changed = lam != self.lam
-        if changed:
-            if lam is None and law is not None:
-                law.reset()
-            self.lam = lam
-        return F, lam, R, changed
+        depth = math.nan if law is None else law.depth(p_device)
+        self.depth = depth
+        was_free = gain.state == FREE
+        L, scale = gain.step(t, depth, imminent, in_contact, action, touch_in_s)
+        F = law.force_robot(p_device, v_device) if gain.law_active else None
+        if law is not None and not was_free and gain.state == FREE:
+            law.reset()
+        return F, L, scale
+
+
+def finger_approach(rec: TargetRecord, t: float, p_device, normal):
+    """``(distance m, time to touch s)`` of the record's tracked finger (extrapolated to ``t``) from the
+    device's contact point: the travel limiter's speed cap and the object gain's early handover.
+
+    The time to touch is the pad's height over the device's face along the subject's ``normal``
+    over its closing speed (0 once at or under the face; infinite when not closing, without a
+    subject or without a finger estimate; NaN distance then too)."""
+    ft = rec.finger_t
+    if ft != ft:
+        return math.nan, math.inf
+    el = t - ft
+    f, v = rec.finger, rec.finger_velocity
+    dx, dy, dz = f[0] + v[0] * el - p_device[0], f[1] + v[1] * el - p_device[1], f[2] + v[2] * el - p_device[2]
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if normal is None:
+        return dist, math.inf
+    n = normal
+    h = dx * n[0] + dy * n[1] + dz * n[2]
+    closing = -(v[0] * n[0] + v[1] * n[1] + v[2] * n[2])
+    return dist, 0.0 if h <= 0.0 else h / closing if closing > 0.0 else math.inf
 
 
 @dataclass
@@ -203,33 +235,51 @@ class ServoTick:
     state: object            # the DeviceState read at the start of the tick
     p_device: np.ndarray     # contact point: end-effector + mount offset
     fault: object = None
+    lambda_state: int = 0    # LAMBDA_CODES
+    force_scale: float = 1.0
+    finger_m: float = math.nan  # the device's distance to the tracked finger (m; NaN: unknown)
+    pressed: bool = False    # the device felt the finger pushing it in (the guard's input)
+    touch_in_s: float = math.inf  # the predicted time until the tracked finger lands on the device's face
     extra: dict = field(default_factory=dict)
 
 
 class ServoStep:
-    """Guard → force law and Λ → controller → device: the one place the system renders contact."""
+    """Guard → force law and Λ → controller → device: the one place the system renders contact.
 
-    def __init__(self, servo, guard: TargetGuard, objects, *, mount_offset, engage_m: float = 0.0003):
+    Before the guard decides, the step tells it whether the device feels the finger: the law was
+    rendering on the previous tick and the device is pushed in deeper than ``press_m`` under the
+    subject's surface (a real device knows this from its own encoders; no camera is involved).
+    The travel limiter is given the device's distance to the tracked finger (the record's pad point
+    extrapolated to now), so the device slows down near the finger.
+    """
+
+    def __init__(self, servo, guard: TargetGuard, objects, *, mount_offset, engage_m: float = 0.0003,
+                 press_m: float = 0.0005):
         self.servo = servo
         self.device = servo.device
         self.controller = servo.controller
         self.guard = guard
         self.mount = np.asarray(mount_offset, float).reshape(3)
-        self.contact = ContactRenderer(objects, max_force_n=float(self.device.limits.peak_force_n), engage_m=engage_m)
+        self.press_m = float(press_m)
+        self.contact = ContactRenderer(objects, max_force_n=float(self.device.limits.peak_force_n), engage_m=engage_m,
+                                       dt=float(self.device.params.dt))
         self.last_action = "idle"
         self._key = None
         self._retreat_key = None
+        self._rendering = False
+        self._normals = [tuple(float(x) for x in o.normal) for o in self.contact.objects]
         self._read_scalar = self.device.read_scalar
         self._l1, self._l2 = self.device.params.l1, self.device.params.l2
         self._tip = tip_state_scalar
         self._time = lambda: float(self.device.time)
 
     def reset(self) -> None:
-        """Start a new run on the same device: guard, laws and target keys forgotten."""
+        """Start a new run on the same device: guard, laws, object gain and target keys forgotten."""
         self.guard.reset()
         self.contact.reset()
         self.last_action = "idle"
         self._key = self._retreat_key = None
+        self._rendering = False
 
     def read(self):
         """The device state and its contact point (the caller may act on the plant before :meth:`tick`).
@@ -249,17 +299,21 @@ class ServoStep:
         else:
             p_dev = np.asarray(dev.p_robot, float) + self.mount
         fault = None
+        law = self.contact.law
+        pressed = self._rendering and law is not None and law.depth(p_dev) > self.press_m
         if rec.armed:
             gx, gy, gz, action, fault = self.guard.decide_scalar(t, *rec.X_ee, rec.made_at, rec.confidence,
-                                                                 rec.calibrated)
+                                                                 rec.calibrated, pressed)
             X_ee = np.array((gx, gy, gz))
         else:
             action, X_ee = "idle", None
-        F_law, lam, R, changed = self.contact.update(p_dev, dev.v_robot, rec.subject,
-                                                     (action == "track" or action == "hold")
-                                                     and (rec.imminent or rec.in_contact))
-        if changed:
-            self.controller.set_lambda(lam, None if lam is None else R)
+        finger_m, touch_in = finger_approach(rec, t, p_dev, None if rec.subject < 0 else self._normals[rec.subject])
+        F_law, L, scale = self.contact.update(t, p_dev, dev.v_robot, rec.subject, rec.imminent, rec.in_contact, action,
+                                              touch_in)
+        self._rendering = F_law is not None
+        ctrl = self.controller
+        ctrl.set_lambda_robot(L)
+        ctrl.force_scale = scale
         # the shaper takes a new sample when its key changes: a new record's capture time while
         # tracking, the moment a retreat began while retreating, the previous key while holding
         if action == "track":
@@ -271,5 +325,6 @@ class ServoStep:
         else:
             key = self._key
         self._key, self.last_action = key, action
-        self.servo.tick(t, None if key is None else X_ee, F_law, t_sample=key)
-        return ServoTick(action, X_ee, F_law, dev, p_dev, fault)
+        self.servo.tick(t, None if key is None else X_ee, F_law, t_sample=key, finger_m=finger_m)
+        return ServoTick(action, X_ee, F_law, dev, p_dev, fault, self.contact.state_code, scale, finger_m, pressed,
+                         touch_in)

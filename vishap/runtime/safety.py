@@ -11,6 +11,14 @@ controller may use and the action taken:
 - ``retreat`` the trouble has lasted longer than ``retreat_after_s``, or there is no calibration:
               move to the retreat point, away from where a finger could be.
 
+A finger that vision loses while it presses the device is not gone: the device feels it (the
+caller says so with ``pressed``: the device pushed in under the subject's surface while the law
+renders it). Vision loses a pressing fingertip routinely — the hand, the device's own links or the
+object hide it — and retreating then would pull the surface from under the finger. So while
+``pressed`` and the fault is a lost finger, the guard holds and its retreat timer starts only when
+the device is let go. A stalled vision process, a non-finite target or a missing calibration are
+faults of the system itself and keep their timers.
+
 Each fault is counted once per episode (entering the fault), not once per tick.
 """
 from __future__ import annotations
@@ -90,17 +98,18 @@ class TargetGuard:
         if self._trouble_since is None:
             self._trouble_since = t
 
-    def decide(self, t: float, X_d, made_at: float, confidence: float, calibrated: bool = True) -> GuardDecision:
+    def decide(self, t: float, X_d, made_at: float, confidence: float, calibrated: bool = True,
+               pressed: bool = False) -> GuardDecision:
         """The target to use at time ``t`` given the newest input (see module docstring)."""
         x = np.asarray(X_d, dtype=float).reshape(-1)
         if x.shape[0] != 3:
             x = np.full(3, np.nan)
         gx, gy, gz, action, fault = self.decide_scalar(
-            t, float(x[0]), float(x[1]), float(x[2]), float(made_at), float(confidence), calibrated
+            t, float(x[0]), float(x[1]), float(x[2]), float(made_at), float(confidence), calibrated, pressed
         )
         return GuardDecision(np.array((gx, gy, gz)), action, fault)
 
-    def decide_scalar(self, t, x, y, z, made_at, confidence, calibrated=True):
+    def decide_scalar(self, t, x, y, z, made_at, confidence, calibrated=True, pressed=False):
         """:meth:`decide` on plain floats for the 1 kHz hot path: ``(x, y, z, action, fault)``."""
         isfinite = math.isfinite
         if not calibrated:
@@ -123,6 +132,8 @@ class TargetGuard:
             self._trouble_since = None
             return g[0], g[1], g[2], "track", None
         self._enter(fault, t)
+        if pressed and fault is Fault.FINGER_LOST:  # the device feels the finger: its timer waits for the release
+            self._trouble_since = t
         if fault is Fault.CALIBRATION_MISSING or t - self._trouble_since >= self.retreat_after_s:
             r = self._retreat
             return r[0], r[1], r[2], "retreat", fault

@@ -16,6 +16,10 @@ passive object, or the finger crosses the surface if it misses), whether the dev
 (within ``in_place_m`` of the ideal contact point) and for how long before (lead time), the
 contact-position error, and during the press the fingertip depth against the device's normal
 force (``Λ f`` + law, without gravity compensation — VisHap Fig. 6's quantity).
+
+Whether the device was *ready* at the touch (issue 16; :func:`device_ready`) says more than "in
+place within 1 mm" about what the finger feels on a 40 mm plate: still along the normal, moving with
+the finger sideways, its face on the virtual surface, the finger landing well inside the face.
 """
 from __future__ import annotations
 
@@ -104,6 +108,7 @@ class ApproachResult:
     through_object: bool = False  # the device's path cut through a non-subject object
     slide_friction_ratio: float | None = None  # median |F_t| / F_n while sliding (fabric: ≈ μ_k)
     log: dict | None = None
+    ready: bool = False  # the device was ready at the first touch (:func:`device_ready`)
 
 
 def make_device(scene: Scene, *, substeps: int = 1, policy: str = "interpolate", travel: bool = True):
@@ -168,6 +173,7 @@ def run_approach(
     pending: list[tuple[float, float, np.ndarray | None]] = []  # (arrival, capture time, measurement)
     dev = np.empty((n_ticks, 3))
     subj = np.empty(n_ticks, dtype=object)
+    v_dev = np.empty((n_ticks, 3))
     f_n = np.zeros(n_ticks)
     f_t = np.zeros(n_ticks)
     d_f = np.zeros(n_ticks)
@@ -205,6 +211,7 @@ def run_approach(
         f_t[k] = math.sqrt(max(F[0] * F[0] + F[1] * F[1] + F[2] * F[2] - f_n[k] * f_n[k], 0.0))
         d_f[k] = -obj.height(p_f)
         dev[k] = p_dev
+        v_dev[k] = state.v_robot
         xd_log[k] = np.asarray(rec.X_ee) + step.mount
         subj[k] = names[rec.subject] if rec.subject >= 0 else ""
         touching[k] = bool(F_pad.any())
@@ -216,6 +223,8 @@ def run_approach(
             break
     plant.check_state()
     dev, f_n, d_f, touching, subj, xd_log = dev[:n_ticks], f_n[:n_ticks], d_f[:n_ticks], touching[:n_ticks], subj[:n_ticks], xd_log[:n_ticks]
+    ready = t_contact is not None and device_ready(obj, dev[: k_contact + 1], v_dev[: k_contact + 1], P_f[k_contact],
+                                                   V_f[: k_contact + 1], half, dt)
 
     in_place, lead, err = False, None, None
     if t_contact is not None:
@@ -245,8 +254,42 @@ def run_approach(
     return ApproachResult(
         traj.object_name, obj.kind, traj.speed_m_s, t_contact, touched, in_place, lead, err,
         cost / max(n_ticks, 1) * 1e6, order, None if t_contact is None else subj[k_contact],
-        d_f[sel], f_n[sel], through, ratio, log,
+        d_f[sel], f_n[sel], through, ratio, log, ready,
     )
+
+
+#: issue 16's "ready at the touch": still for this long before it, …
+READY_WINDOW_S = 0.020
+READY_NORMAL_SPEED_M_S = 0.010      # … along the normal at most this fast,
+READY_TANGENTIAL_SPEED_M_S = 0.020  # … sideways relative to the finger at most this fast,
+READY_FACE_M = 0.0005               # the face this close to the virtual surface,
+READY_INSIDE_M = 0.010              # the finger landing this far inside the face's edge
+
+
+def device_ready(obj, p_device, v_device, p_touch, v_finger, half_size_m: float, dt: float) -> bool:
+    """Whether the device was ready when the finger first touched (the last row of each array).
+
+    ``p_device``/``v_device``: the device's contact point (centre of the passive object's face) and
+    velocity per tick up to the touch; ``v_finger`` the finger's velocity per tick; ``p_touch`` the
+    finger's pad at the touch; ``half_size_m`` the face's half width. All of: over the last
+    ``READY_WINDOW_S`` the device's normal speed ≤ 10 mm/s and its tangential speed relative to the
+    finger ≤ 20 mm/s; its face within 0.5 mm of the virtual surface along the normal; the touch point
+    at least 10 mm inside the face's edges."""
+    n_win = int(round(READY_WINDOW_S / dt))
+    if len(p_device) < n_win + 1:
+        return False
+    n = np.asarray(obj.normal, float)
+    v = np.asarray(v_device[-n_win - 1:], float)
+    rel = v - np.asarray(v_finger[-n_win - 1:], float)
+    v_n = np.abs(v @ n)
+    rel_t = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
+    if np.any(v_n > READY_NORMAL_SPEED_M_S) or np.any(rel_t > READY_TANGENTIAL_SPEED_M_S):
+        return False
+    p = np.asarray(p_device[-1], float)
+    if abs(obj.height(p)) > READY_FACE_M:
+        return False
+    q = obj.R.T @ (np.asarray(p_touch, float) - p)  # the touch point in the face's frame, from its centre
+    return bool(max(abs(q[0]), abs(q[1])) <= half_size_m - READY_INSIDE_M)
 
 
 def _cuts_through(scene: Scene, dev: np.ndarray, subj: np.ndarray) -> bool:

@@ -297,7 +297,8 @@ def load_scene(name_or_path: str | os.PathLike, *, modes: ModeDatabase | None = 
     if not p.suffix and not p.exists():
         p = SCENES_DIR / f"{name_or_path}.yaml"
         if not p.is_file():
-            raise ConfigError(f"unknown scene {str(name_or_path)!r}; expected a file or one of {available_scenes()}", field="scene")
+            raise ConfigError(f"unknown scene {str(name_or_path)!r}; expected a file or one of {available_scenes()}",
+                              field="scene")
     try:
         spec = load_config(p, SceneSpec)
     except ConfigError as exc:
