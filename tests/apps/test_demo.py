@@ -44,6 +44,11 @@ def test_outputs_and_summary(run):
     import imageio.v2 as imageio
 
     assert len(imageio.mimread(str(out / "demo.mp4"), memtest=False)) == 80
+    # the augmented view: the left camera with the device deleted and the wall drawn in (not the raw frame)
+    ar = imageio.mimread(str(out / "ar.mp4"), memtest=False)
+    assert len(ar) == 80 and ar[-1].shape[:2] == (360, 480)
+    raw = read_frame_png(out / "frames", "left", 79)[:, :, ::-1]
+    assert np.abs(ar[-1].astype(float) - raw.astype(float)).mean() > 3.0
 
 
 def test_frames_show_the_plant_at_their_time(run):

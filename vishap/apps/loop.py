@@ -65,6 +65,17 @@ class Demo:
             from vishap.apps.overlay import VideoWriter
 
             self.video = VideoWriter(self.out / "demo.mp4", cfg.camera_hz)
+        self.ar = self.ar_video = None
+        if cfg.video:  # the augmented view (VisHap §2 world subsystem): device deleted, objects drawn in
+            from vishap.apps.overlay import VideoWriter
+            from vishap.ar import ARCompositor, device_geometry
+
+            po = st.scene.passive_object
+            geo = device_geometry("phantom_premium_1_0", passive_size_m=po.size_m,
+                                  mount_offset_robot=st.mount_offset, stand_z_m=None)
+            self.ar = ARCompositor(st.rig, st.T_est, st.scene, geo, segmenter=st.vision.segmenters["left"],
+                                   seed=cfg.seed)
+            self.ar_video = VideoWriter(self.out / "ar.mp4", cfg.camera_hz)
         self.wall = {"render": 0.0, "vision": 0.0, "scene": 0.0, "io": 0.0}
         self.stats = {"frames_dropped": 0}
 
@@ -132,8 +143,23 @@ class Demo:
             extra = [f"device: {st.cycle.step.last_action}   contact force {f:4.2f} N"]
             self.video.write(st.overlay(pair, row, dev, self.target, t, extra))
             self.wall["io"] += time.perf_counter() - c3
+        if self.ar_video is not None:
+            c4 = time.perf_counter()
+            self.ar_video.write(self.ar.compose(pair.left, None, dev.q, t, contact=self._ar_contact(dev)))
+            self.wall["ar"] = self.wall.get("ar", 0.0) + time.perf_counter() - c4
         if self.progress and (k % 10 == 0 or k == self.cfg.frames - 1):
             print(f"\rdemo {self.cfg.scene}: frame {k + 1}/{self.cfg.frames}", end="", file=sys.stderr, flush=True)
+
+    def _ar_contact(self, dev):
+        """Where the device is pressed under its subject's surface, for the AR view (None: no press)."""
+        from vishap.ar import Contact
+
+        law = self.st.cycle.step.contact.law
+        if law is None:
+            return None
+        p = np.asarray(dev.p_robot, float) + self.st.mount_offset
+        depth = float(law.depth(p))
+        return Contact(tuple(float(v) for v in p), depth) if depth > 0.0 else None
 
     # ------------------------------------------------------------------ deliver (1 kHz)
     def deliver(self, t: float) -> None:
@@ -173,6 +199,8 @@ class Demo:
 
         if self.video is not None:
             self.video.close()
+        if self.ar_video is not None:
+            self.ar_video.close()
         wall = {**self.wall, **self.st.cycle.wall, "total": self.wall_total}
         return write_outputs(self.out, self.log, wall=wall, stats={**self.stats, **self.st.cycle.stats},
                              guard_counts=self.st.guard.counts)
