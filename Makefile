@@ -15,7 +15,7 @@ $(VENV)/.installed: pyproject.toml constraints.txt scripts/setup-system.sh
 	touch $@
 
 demo: setup
-	$(VENV)/bin/vishap demo wall --out $(OUT)/demo/wall
+	$(VENV)/bin/vishap demo wall --overwrite --out $(OUT)/demo/wall
 	@echo "wall demo written to $(OUT)/demo/wall (summary.json, demo.mp4, force_depth.png, log.npz)"
 
 test: setup

@@ -42,7 +42,10 @@ def parse_travel(text: str) -> dict:
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="run the wall / button / fabric closed-loop demo (simulated or live)")
     p.add_argument("scene", choices=SCENES, help="which demo")
-    p.add_argument("--out", required=True, help="output folder (video, plots, log.npz, summary.json)")
+    p.add_argument("--out", required=True,
+                   help="output folder (video, plots, log.npz, summary.json), written whole at the end; "
+                        "must not exist or be empty")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out once the new run is complete")
     p.add_argument("--frames", type=int, default=None, help="camera frames (default: the scene's script length)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--width", type=int, default=480, help="image width, pixels (default 480)")
@@ -75,28 +78,34 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from vishap._core.output import output_dir
+
+    with output_dir(args.out, overwrite=args.overwrite) as o:
+        summary = _demo(args, o.path)
+    print(json.dumps(summary))
+    return 0
+
+
+def _demo(args: argparse.Namespace, out) -> dict:
     if args.live:
         from vishap.apps.live import run_live
 
         fields = {"seed": args.seed, "scene_hz": args.scene_hz, "save_frames": not args.no_frames, **args.travel}
         if args.contact_model is not None:
             fields["contact_model"] = args.contact_model
-        summary = run_live(args.scene, out=args.out, cameras=args.cameras, calib=args.calib, rig=args.rig,
-                           device=args.device, duration_s=args.duration, **fields)
-    else:
-        from vishap.apps import run_demo
-        from vishap.apps.config import DemoConfig
-        from vishap._core.config import validate
+        return run_live(args.scene, out=out, cameras=args.cameras, calib=args.calib, rig=args.rig,
+                        device=args.device, duration_s=args.duration, **fields)
+    from vishap.apps import run_demo
+    from vishap.apps.config import DemoConfig
+    from vishap._core.config import validate
 
-        fields = {"scene": args.scene, "seed": args.seed, "width": args.width, "height": args.height,
-                  "camera_hz": args.camera_hz, "scene_hz": args.scene_hz, "calib": args.calib, "faults": args.fault,
-                  "video": not args.no_video, "save_frames": not args.no_frames}
-        if args.frames is not None:
-            fields["frames"] = args.frames
-        fields.update(args.travel)
-        if args.contact_model is not None:
-            fields["contact_model"] = args.contact_model
-        cfg = validate(DemoConfig, fields, file=None)
-        summary = run_demo(cfg, args.out, progress=True)
-    print(json.dumps(summary))
-    return 0
+    fields = {"scene": args.scene, "seed": args.seed, "width": args.width, "height": args.height,
+              "camera_hz": args.camera_hz, "scene_hz": args.scene_hz, "calib": args.calib, "faults": args.fault,
+              "video": not args.no_video, "save_frames": not args.no_frames}
+    if args.frames is not None:
+        fields["frames"] = args.frames
+    fields.update(args.travel)
+    if args.contact_model is not None:
+        fields["contact_model"] = args.contact_model
+    cfg = validate(DemoConfig, fields, file=None)
+    return run_demo(cfg, out, progress=True)
