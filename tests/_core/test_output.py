@@ -114,7 +114,9 @@ def test_refuses_to_overwrite_the_current_folder(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_signal_leaves_no_temporary_folder(tmp_path, sig):
-    code = ("import sys, time\nfrom vishap._core.output import output_dir\n"
+    # a job started in the background inherits SIGINT ignored; a user's terminal delivers it as KeyboardInterrupt
+    code = ("import signal, sys, time\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n"
+            "from vishap._core.output import output_dir\n"
             "with output_dir(sys.argv[1]) as f:\n    (f.path / 'frame.png').write_text('x')\n"
             "    print('ready', flush=True)\n    time.sleep(60)\n")
     proc = subprocess.Popen([sys.executable, "-c", code, str(tmp_path / "out")], stdout=subprocess.PIPE, text=True)
