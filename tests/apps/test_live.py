@@ -55,3 +55,13 @@ def test_live_servo_cycle_runs_a_driver_named_module_class():
     assert len(servo["t"]) == 300 and np.all(servo["guard"][1:] == 0)
     assert np.all(np.isfinite(servo["F_cmd"])) and res["peak_force_n"] == 8.5
     assert len(res["channels"]["tactile"]) == 300
+
+
+def test_live_mode_says_when_it_cannot_show_the_augmented_view(monkeypatch, capsys):
+    from vishap.apps.live_loop import _live_view
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    ar, view = _live_view(None, None, None, None)
+    assert ar is None and not view.available
+    assert "AR view is not shown live" in capsys.readouterr().err

@@ -155,6 +155,7 @@ class ServoCycle:
         self.stats = {"force_over_limit": 0, "nonfinite_commands": 0}
         self.force_limit_n = float(step.device.limits.peak_force_n)
         self.last = None  # (F_on_finger, p_device, v_device, record) of the latest servo tick
+        self.last_q = np.full(3, np.nan)  # the device's joint angles at the latest servo tick (rad)
         self.wall = {"servo": 0.0, "tactile": 0.0}
 
     def servo(self, t: float, rec: TargetRecord) -> None:
@@ -179,6 +180,7 @@ class ServoCycle:
         self.wall["servo"] += dt_wall
         F_on_finger = -F_on_dev
         self.last = (F_on_finger, p_dev, dev.v_robot, rec)
+        self.last_q = dev.q
         obj = self.obj
         self.log.channel("servo").append(
             t=t, q=dev.q, p_ee=dev.p_robot, device_point=p_dev, v_device=dev.v_robot,

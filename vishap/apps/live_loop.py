@@ -31,7 +31,7 @@ from vishap.apps.log import SignalLog, write_frame_png
 __all__ = ["run_live_loop", "LiveCycle", "recorded_finger"]
 
 #: the servo process's state record: [t, device contact point (3), guard action code, record seq]
-STATE_SIZE = 6
+STATE_SIZE = 9  # t, device point (3), guard code, record seq, joint angles (3)
 
 
 class LiveCycle:
@@ -78,6 +78,7 @@ class LiveCycle:
         out[1:4] = p_dev
         out[4] = GUARD_CODES[self.cycle.step.last_action]
         out[5] = self._rec.seq
+        out[6:9] = self.cycle.last_q
         return out
 
     def finish(self) -> dict:
@@ -86,6 +87,20 @@ class LiveCycle:
         return {"channels": self.log.channels, "stats": dict(c.stats), "guard_counts": dict(c.step.guard.counts),
                 "wall": dict(c.wall), "peak_force_n": float(lim.peak_force_n),
                 "continuous_force_n": float(lim.continuous_force_n)}
+
+
+def _live_view(rig, T_robot_cam, scene, vision):
+    """The augmented view in a window where a display exists (it says once when there is none)."""
+    from vishap.ar import ARCompositor, device_geometry
+    from vishap.ar.live_view import open_live_view
+
+    view = open_live_view()
+    if not view.available:
+        return None, view
+    po = scene.passive_object
+    geo = device_geometry("phantom_premium_1_0", passive_size_m=po.size_m, mount_offset_robot=po.mount_offset_m,
+                          stand_z_m=None)
+    return ARCompositor(rig, T_robot_cam, scene, geo, segmenter=vision.segmenters["left"]), view
 
 
 def _make_live_cycle(cfg: dict, device: str, finger):
@@ -252,6 +267,7 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
     # lossless frames for replay are written beside the loop (PNG encoding of a noisy pair takes longer
     # than a frame period here; OpenCV releases the GIL while it encodes)
     writer = ThreadPoolExecutor(max_workers=1) if cfg.save_frames else None
+    ar, view = _live_view(rig, T, scene, vision)
     servo.start()
     wall0 = time.monotonic()
     try:
@@ -280,6 +296,8 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
             world_ms = 1e3 * (time.perf_counter() - c0)
             servo.write_target(np.append(rec.pack(), offset))
             now = servo.now()  # the record is published: the frame's age is now - t
+            if view.available:
+                view.show(ar.compose(frame.left, None, state[6:9], t))
             log_scene_row(log, t, rec, inter, p_pad, p_dev, mount, world_ms)
             g = gt_index.get(round(float(frame.t), 6))
             tip_cam = np.full(3, np.nan) if g is None else np.asarray(gt["tip_cam"][g], float)
@@ -297,6 +315,7 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
                           render_ms=np.nan, device_q=np.full(3, np.nan), device_ee=p_dev - mount,
                           **_stage_ms(est.timings))
     finally:
+        view.close()
         report = servo.stop()
         close = getattr(source, "close", None)
         if close:
