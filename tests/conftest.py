@@ -1,4 +1,5 @@
-"""Shared fixtures: a seeded random generator and a small family of stereo rigs."""
+"""Shared fixtures: a seeded random generator, a small family of stereo rigs, and a module written
+outside the package (a user's driver) put on ``sys.path``."""
 from __future__ import annotations
 
 import os
@@ -9,6 +10,25 @@ import numpy as np
 import pytest
 
 from vishap.vision.rig import StereoRig
+
+
+@pytest.fixture
+def module_outside(tmp_path, monkeypatch):
+    """``write(name, source)``: a module ``name`` in ``tmp_path``, importable for this test only."""
+    import importlib
+    import sys
+
+    written = []
+
+    def write(name: str, source: str):
+        (tmp_path / f"{name}.py").write_text(source)
+        monkeypatch.syspath_prepend(str(tmp_path))
+        written.append(name)
+        return importlib.import_module(name)
+
+    yield write
+    for name in written:
+        sys.modules.pop(name, None)
 
 
 @pytest.fixture

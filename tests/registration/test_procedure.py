@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import re
-import sys
 import textwrap
 
 import numpy as np
@@ -70,13 +69,8 @@ STANDIN = textwrap.dedent('''
 
 
 @pytest.fixture
-def standin(tmp_path, monkeypatch):
-    (tmp_path / "standin_arm.py").write_text(STANDIN)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    import standin_arm
-
-    yield standin_arm
-    sys.modules.pop("standin_arm", None)
+def standin(module_outside):
+    return module_outside("standin_arm", STANDIN)
 
 
 def _placer(device, rng, off_m=0.003):

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import sys
 import textwrap
 import tomllib
 from pathlib import Path
@@ -68,11 +67,9 @@ OUTSIDE_DRIVER = textwrap.dedent('''
 
 
 @pytest.fixture
-def outside(tmp_path, monkeypatch):
-    (tmp_path / "labdrivers.py").write_text(OUTSIDE_DRIVER)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    yield tmp_path
-    sys.modules.pop("labdrivers", None)
+def outside(module_outside, tmp_path):
+    module_outside("labdrivers", OUTSIDE_DRIVER)
+    return tmp_path
 
 
 def test_sim_is_the_mujoco_plant_with_kwargs_passed_through():
