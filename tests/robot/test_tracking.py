@@ -43,3 +43,14 @@ def test_bench_tracking_quick(tmp_path):
     assert len(rec["policies"]) == 3
     for name in ("tracking_steps.png", "tracking_policies.png"):
         assert (tmp_path / name).stat().st_size > 1000
+
+
+def test_a_run_shorter_than_its_settling_time_is_refused_by_name():
+    from vishap._core.errors import ConfigError
+    from vishap.robot.gains import Gains
+    from vishap.robot.tracking import band_rms, hold_and_approach
+
+    with pytest.raises(ConfigError) as exc:
+        hold_and_approach(Gains(), "hold", seconds=0.5)
+    assert exc.value.field == "seconds"
+    assert band_rms(np.zeros((0, 3)), 1000.0) == 0.0

@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from vishap._core.errors import ConfigError
+
 from vishap.robot.controller import Controller, Gains
 from vishap.robot.kinematics import ik
 from vishap.robot.mjcf import PassiveObject
@@ -152,9 +154,9 @@ def band_rms(x, fs: float, lo_hz: float = 0.0, hi_hz: float = math.inf) -> float
     """RMS (over all columns together) of the part of ``x`` between ``lo_hz`` and ``hi_hz`` (its mean
     removed), from the FFT: Parseval on the one-sided spectrum."""
     x = np.asarray(x, dtype=np.float64)
-    x = x.reshape(len(x), -1) - np.mean(x, axis=0).reshape(1, -1)
     if len(x) < 4:
         return 0.0
+    x = x.reshape(len(x), -1) - np.mean(x, axis=0).reshape(1, -1)
     X = np.fft.rfft(x, axis=0)
     f = np.fft.rfftfreq(len(x), 1.0 / fs)
     w = np.where((f > lo_hz) & (f <= hi_hz), 2.0, 0.0)
@@ -172,6 +174,9 @@ def hold_and_approach(gains: Gains, scenario: str, *, seconds: float = 2.0, visi
     position ``p`` (m, MuJoCo's, not the encoder's) and the tick times after ``settle_s``."""
     if scenario not in ("hold", "approach"):
         raise ValueError(f"scenario: expected 'hold' or 'approach', got {scenario!r}")
+    if not seconds > settle_s + 0.1:
+        raise ConfigError(f"seconds = {seconds!r}: the run must outlast the {settle_s} s settling time by at least "
+                          "0.1 s to leave a signal to measure", field="seconds")
     p0 = CENTRE
     plant = MujocoPlant(passive_object=PassiveObject(), q0=ik(p0), substeps=substeps, sensor="encoder")
     ctrl = Controller(plant.params, gains, limits=plant.limits)
