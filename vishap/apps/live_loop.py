@@ -44,7 +44,7 @@ class LiveCycle:
     def __init__(self, cfg: dict, device: str, finger: tuple | None):
         from vishap.apps.assemble import make_cycle
         from vishap.apps.cycle import RecordedFinger, TrackedFinger
-        from vishap.runtime.core import RECORD_SIZE, TargetRecord
+        from vishap.runtime.core import GUARD_CODES, RECORD_SIZE, TargetRecord
         from vishap.world.scene import load_scene
 
         self.cfg = DemoConfig.model_validate(cfg)
@@ -62,6 +62,7 @@ class LiveCycle:
         self._unpack = TargetRecord.unpack
         self._rec = TargetRecord()
         self._out = np.zeros(STATE_SIZE)
+        self._guard_codes = GUARD_CODES
 
     def step(self, t: float, target) -> np.ndarray:
         if target[0] != self._rec.seq:  # a new record (seq 0: none yet)
@@ -70,13 +71,11 @@ class LiveCycle:
                 self.finger.offset = float(target[self._n])
         self.cycle.servo(t, self._rec)
         self.cycle.tactile(t)
-        from vishap.runtime.core import GUARD_CODES
-
         out = self._out
         _, p_dev, _, _ = self.cycle.last
         out[0] = t
         out[1:4] = p_dev
-        out[4] = GUARD_CODES[self.cycle.step.last_action]
+        out[4] = self._guard_codes[self.cycle.step.last_action]
         out[5] = self._rec.seq
         out[6:9] = self.cycle.last_q
         return out
