@@ -44,6 +44,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--substeps", type=int, default=10, help="physics steps per servo period (default 10)")
     parser.add_argument("--logs", default=None, help="read demo outputs DIR/SCENE_SEED instead of running them")
     parser.add_argument("--seconds", type=float, default=2.0, help="length of the servo-alone runs (default 2)")
+    from vishap.scale.cli import add_engine_options
+
+    add_engine_options(parser, sweep=True)
 
 
 # -- the one place that knows the log --------------------------------------------------------------
@@ -225,19 +228,38 @@ def _demo_folders(args, out: Path) -> list[tuple[str, int, Path]]:
         raise ConfigError(f"expected scenes from {SCENES} and at least one seed, got {args.scenes!r} / {args.seeds!r}",
                           field="--scenes")
     base = Path(args.logs) if args.logs else out / "demos"
-    folders = []
+    folders, todo = [], []
     for scene in scenes:
         for seed in seeds:
             d = base / f"{scene}_{seed}"
             if not (d / "summary.json").is_file():
                 if args.logs:
                     raise ConfigError(f"no demo output in {d} (expected log.npz and summary.json)", field="--logs")
-                from vishap.apps import DemoConfig, run_demo
-
-                run_demo(DemoConfig(scene=scene, seed=seed, substeps=int(args.substeps), encoder="encoder",
-                                    video=False, save_frames=False), d)
+                todo.append((d.name, {"scene": scene, "seed": seed, "substeps": int(args.substeps), "encoder": "encoder",
+                                      "video": False, "save_frames": False}))
             folders.append((scene, seed, d))
+    # the demos as Ray tasks with --workers/--address; their files come back and are written here
+    from vishap.scale import map_cases
+    from vishap.scale.cli import default_workers
+    from vishap.scale.folders import commit_files
+
+    ran = map_cases(demo_files, [fields for _, fields in todo], workers=default_workers(args), address=args.address,
+                    desc="demos")
+    for (name, _), files in zip(todo, ran):
+        commit_files(base, name, files)
     return folders
+
+
+def demo_files(fields: dict) -> dict[str, bytes]:
+    """One demo (``DemoConfig`` fields) run into a temporary folder: its files, by relative path."""
+    import tempfile
+
+    from vishap.apps import DemoConfig, run_demo
+    from vishap.scale.folders import read_files
+
+    with tempfile.TemporaryDirectory(prefix="vishap-demo-") as tmp:
+        run_demo(DemoConfig(**fields), Path(tmp) / "demo")
+        return read_files(Path(tmp) / "demo")
 
 
 def _stiffness() -> dict:

@@ -48,6 +48,9 @@ COLORS = {"stable": "tab:green", "oscillating": "tab:orange", "diverged": "tab:r
 def add_arguments(parser) -> None:
     parser.add_argument("--substeps", type=int, default=10, help="physics steps per 1 ms servo period (default 10)")
     parser.add_argument("--quick", action="store_true", help="a coarse subset of every sweep (for smoke tests)")
+    from vishap.scale.cli import add_engine_options
+
+    add_engine_options(parser, sweep=True)
 
 
 def _grids(quick: bool) -> dict:
@@ -113,45 +116,53 @@ def renderable_stiffness(recs: list[dict]) -> dict:
             "passive_but_unstable": sum(1 for r in con if r["outcome"] != "stable" and r["colgate_passive"])}
 
 
-def run_sweeps(substeps: int, quick: bool = False) -> list[dict]:
-    from vishap.robot.stability import RunSpec, passivity_margin, run_free_space, run_wall
+def _run_case(case: tuple) -> dict:
+    """One run of a sweep (a Ray task under ``--workers``): a pure function of its case."""
+    from vishap.robot.stability import RunSpec, run_free_space, run_wall
 
+    sweep, kind, kw = case
+    r = (run_wall if kind == "wall" else run_free_space)(RunSpec(**kw))
+    r["sweep"] = sweep
+    return r
+
+
+def run_sweeps(substeps: int, quick: bool = False, *, workers: int = 1, address: str | None = None) -> list[dict]:
     g = _grids(quick)
-    recs: list[dict] = []
+    cases: list[tuple] = []
 
-    def add(sweep, fn, **kw):
-        r = fn(RunSpec(substeps=substeps, **kw))
-        r["sweep"] = sweep
-        recs.append(r)
+    def add(sweep, kind, **kw):
+        cases.append((sweep, kind, {"substeps": substeps, **kw}))
 
     for sensor in g["sensors"]:
         for kp in g["kp"]:
             for kv in g["kv"]:
-                add("kp_kv", run_free_space, kp=kp, kv=kv, sensor=sensor)
+                add("kp_kv", "free", kp=kp, kv=kv, sensor=sensor)
     for kp in ([800] if quick else SWEEP_KP):
         for a in g["a"]:
-            add("filter", run_free_space, kp=kp, kv=_kv_for(kp), a=a)
+            add("filter", "free", kp=kp, kv=_kv_for(kp), a=a)
     for policy in ("hold", "extrapolate") if quick else ("hold", "interpolate", "extrapolate"):
         for rate in g["rates"]:
-            add("rate", run_free_space, rate_hz=rate, policy=policy)
+            add("rate", "free", rate_hz=rate, policy=policy)
     for kp in ([800] if quick else SWEEP_KP):
         for d in g["delays"]:
-            add("delay", run_free_space, kp=kp, kv=_kv_for(kp), delay_ticks=d)
-    b_tip, T = _tip_b_T()
+            add("delay", "free", kp=kp, kv=_kv_for(kp), delay_ticks=d)
     for mode in g["modes"]:
         for K in g["contact_k"]:
             for B in g["contact_b"]:
-                r = run_wall(RunSpec(substeps=substeps, sensor="encoder", wall_k=K, wall_b=B, mode=mode, jitter=True))
-                r["sweep"] = "contact"
-                r["colgate_passive"] = passivity_margin(K, B, b_tip, T) > 0
-                recs.append(r)
+                add("contact", "wall", sensor="encoder", wall_k=K, wall_b=B, mode=mode, jitter=True)
     for sub in sorted({1, substeps}):
         for sensor in g["sensors"]:
             for K in g["wall_k"]:
                 for B in g["wall_b"]:
-                    r = run_wall(RunSpec(substeps=sub, sensor=sensor, wall_k=K, wall_b=B))
-                    r["sweep"] = "wall"
-                    recs.append(r)
+                    cases.append(("wall", "wall", {"substeps": sub, "sensor": sensor, "wall_k": K, "wall_b": B}))
+    from vishap.robot.stability import passivity_margin
+    from vishap.scale import map_cases
+
+    recs = map_cases(_run_case, cases, workers=workers, address=address, desc="stability")
+    b_tip, T = _tip_b_T()
+    for r in recs:
+        if r["sweep"] == "contact":
+            r["colgate_passive"] = passivity_margin(r["wall_k"], r["wall_b"], b_tip, T) > 0
     return recs
 
 
@@ -307,7 +318,9 @@ def run(args) -> dict:
     from vishap.robot.stability import tip_damping
 
     t0 = time.perf_counter()
-    recs = run_sweeps(int(args.substeps), bool(args.quick))
+    from vishap.scale.cli import default_workers
+
+    recs = run_sweeps(int(args.substeps), bool(args.quick), workers=default_workers(args), address=args.address)
     elapsed = time.perf_counter() - t0
     out = Path(args.out)
     b_tip = tip_damping()

@@ -33,6 +33,9 @@ NOMINAL = {"speed_m_s": 0.2, "occlusion_frames": 0, "light_drop": 0.0, "table_hu
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--frames", type=int, default=36, help="frames after the background frames (default 36)")
     p.add_argument("--quick", action="store_true", help="two values per factor (smoke run)")
+    from vishap.scale.cli import add_engine_options
+
+    add_engine_options(p, sweep=True)
 
 
 def _table_bgr(offset):
@@ -81,6 +84,8 @@ class _MOG2Segmenter:
     def learn(self, frames):
         for f in frames:
             self.sub.apply(f)
+        # the pipeline checks the learned background for a hand, as it does with its own model's mean
+        self.mean_image = self.sub.getBackgroundImage()
         self.learned = True
 
     def segment(self, image, roi=None):
@@ -133,19 +138,28 @@ def _run_method(method, rig, frames, gt, occ0, n_occ):
 METHODS = ("tracked window", "full frame", "MOG2 + same detector")
 
 
+def _point(case: tuple) -> dict:
+    """One sweep point, every method (a Ray task under ``--workers``): a pure function of
+    ``(factor, value, frames)`` (the toy scene's noise has a fixed seed)."""
+    factor, v, n = case
+    p = dict(NOMINAL, **{factor: v})
+    rig, frames, gt, occ0 = _frames(p, n)
+    row = {"value": v}
+    for m in METHODS:
+        row[m] = _run_method(m, rig, frames, gt, occ0, p["occlusion_frames"])
+    return row
+
+
 def run(args: argparse.Namespace) -> dict:
+    from vishap.scale import map_cases
+    from vishap.scale.cli import default_workers
+
     rec = {"machine": machine_info(), "nominal": NOMINAL, "sweeps": {}}
-    for factor, values in SWEEPS.items():
-        vals = [values[0], values[-1]] if args.quick else values
-        rows = []
-        for v in vals:
-            p = dict(NOMINAL, **{factor: v})
-            rig, frames, gt, occ0 = _frames(p, args.frames)
-            row = {"value": v}
-            for m in METHODS:
-                row[m] = _run_method(m, rig, frames, gt, occ0, p["occlusion_frames"])
-            rows.append(row)
-        rec["sweeps"][factor] = rows
+    cases = [(factor, v, args.frames) for factor, values in SWEEPS.items()
+             for v in ([values[0], values[-1]] if args.quick else values)]
+    rows = map_cases(_point, cases, workers=default_workers(args), address=args.address, desc="vision_stability")
+    for (factor, _, _), row in zip(cases, rows):
+        rec["sweeps"].setdefault(factor, []).append(row)
     rec["chart"] = str(_chart(rec, f"{args.out}/vision_stability.png"))
     return rec
 

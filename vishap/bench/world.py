@@ -58,6 +58,9 @@ def add_arguments(p) -> None:
     p.add_argument("--dropout", type=float, default=0.05, help="share of lost fingertip samples")
     p.add_argument("--bow", type=float, default=0.10, help="largest sideways bow of a path, share of its length")
     p.add_argument("--in-place-mm", type=float, default=1.0)
+    from vishap.scale.cli import add_engine_options
+
+    add_engine_options(p, sweep=True)
 
 
 def _pct(x, q):
@@ -202,13 +205,32 @@ def _perfect_world_class():
     return PerfectWorld
 
 
-def run(args) -> dict:
-    from vishap.world.closed_loop import FingerPad, VisionModel, run_approach
+def _approach(case: tuple):
+    """One approach (a Ray task under ``--workers``): a pure function of its case ``(scene name,
+    trajectory, world, vision model, seed, in_place_m, stop_after_contact_s)``; ``world`` is
+    ``{"predictor", "handover", "contact_model"}`` options of :class:`World`, or ``{"perfect": ahead,
+    "contact_model"}`` for the perfect-prediction bound."""
+    from vishap.world.closed_loop import run_approach
     from vishap.world.scene import load_scene
-    from vishap.world.trajectories import make_approaches
     from vishap.world.world import World
 
-    PerfectWorld = _perfect_world_class()
+    name, tr, world, vision, seed, in_place_m, stop = case
+    scene = load_scene(name)
+    if "perfect" in world:
+        w = _perfect_world_class()(scene, latency_s=vision.latency_s, contact_model=world["contact_model"])
+        w.truth(tr, world["perfect"])
+    else:
+        w = World(scene, latency_s=vision.latency_s, **world)
+    return run_approach(scene, tr, w, vision=vision, seed=seed, in_place_m=in_place_m, stop_after_contact_s=stop)
+
+
+def run(args) -> dict:
+    from vishap.scale import map_cases
+    from vishap.scale.cli import default_workers
+    from vishap.world.closed_loop import FingerPad, VisionModel
+    from vishap.world.scene import load_scene
+    from vishap.world.trajectories import make_approaches
+
     out = Path(args.out)
     vision = VisionModel(args.rate_hz, args.latency_ms / 1e3, args.noise_mm / 1e3, args.dropout)
     in_place_m = args.in_place_mm / 1e3
@@ -216,16 +238,35 @@ def run(args) -> dict:
     t_start = time.perf_counter()
     cm = _system_contact_model()
 
-    per_scene, allres = {}, []
+    # every approach of every part below is one case, run at once (as Ray tasks with --workers)
+    blocks: dict = {}
     for si, (name, scene) in enumerate(scenes.items()):
         trajs = make_approaches(scene, args.approaches, seed=args.seed + 100 * si, bow_fraction=args.bow)
-        res = [
-            run_approach(scene, tr, World(scene, latency_s=vision.latency_s, contact_model=cm), vision=vision,
-                         seed=args.seed + 1000 * si + i, in_place_m=in_place_m)
-            for i, tr in enumerate(trajs)
-        ]
-        per_scene[name] = res
-        allres += res
+        blocks[("scene", name)] = [(name, tr, {"contact_model": cm}, vision, args.seed + 1000 * si + i, in_place_m, None)
+                                   for i, tr in enumerate(trajs)]
+    pol_scene = scenes.get("wall") or load_scene("wall")
+    trajs = make_approaches(pol_scene, args.policy_approaches, seed=args.seed + 7, bow_fraction=args.bow, slide=False)
+
+    def on_policy_set(world, vm=vision):
+        return [("wall", tr, world, vm, args.seed + 5000 + i, in_place_m, 0.02) for i, tr in enumerate(trajs)]
+
+    for pred, ho, pcm in POLICIES:
+        blocks[("policy", pred, ho, pcm)] = on_policy_set({"predictor": pred, "handover": ho, "contact_model": pcm})
+    sens_models = {
+        "camera_60hz_20ms": VisionModel(60.0, 0.020, vision.noise_m, vision.dropout),
+        "no_noise_no_dropout": VisionModel(vision.rate_hz, vision.latency_s, 0.0, 0.0),
+        "ideal_250hz_no_latency_no_noise": VisionModel(250.0, 0.0, 0.0, 0.0),
+    }
+    for label, vm in sens_models.items():
+        blocks[("sens", label)] = on_policy_set({"contact_model": cm}, vm)
+    for label, ahead in (("perfect_prediction", None), ("perfect_prediction_100ms_before_touch", 0.1)):
+        blocks[("sens", label)] = on_policy_set({"perfect": ahead, "contact_model": cm})
+    flat = [c for cases in blocks.values() for c in cases]
+    done = iter(map_cases(_approach, flat, workers=default_workers(args), address=args.address, desc="world"))
+    results = {key: [next(done) for _ in cases] for key, cases in blocks.items()}
+
+    per_scene = {key[1]: rs for key, rs in results.items() if key[0] == "scene"}
+    allres = [r for rs in per_scene.values() for r in rs]
 
     record = {"approaches": len(allres), **{k: v for k, v in _summary(allres, in_place_m).items() if k != "approaches"}}
     record["per_scene"] = {k: _summary(v, in_place_m) for k, v in per_scene.items()}
@@ -283,44 +324,18 @@ def run(args) -> dict:
         charts.append(str(_plot_fig6(fig6, scenes, out / "fig6_force_depth.png")))
 
     # policies on the same approaches (wall scene, stop shortly after contact)
-    pol_scene = scenes.get("wall") or load_scene("wall")
-    trajs = make_approaches(pol_scene, args.policy_approaches, seed=args.seed + 7, bow_fraction=args.bow, slide=False)
     policies = {}
     for pred, ho, pcm in POLICIES:
-        rs = [
-            run_approach(pol_scene, tr, World(pol_scene, predictor=pred, handover=ho, contact_model=pcm,
-                                              latency_s=vision.latency_s),
-                         vision=vision, seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02)
-            for i, tr in enumerate(trajs)
-        ]
+        rs = results[("policy", pred, ho, pcm)]
         tag = " (system)" if (pred, ho, pcm) == ("kalman", "hold", cm) else ""
         policies[f"{pred}+{ho}+{pcm}{tag}"] = {**_summary(rs, in_place_m), "errors_mm": [r.contact_error_m * 1e3 for r in rs],
                                                      "speeds": [r.speed_m_s for r in rs]}
     charts.append(str(_plot_policies(policies, out / "policies.png")))
 
-    # what limits the meeting: the same approaches with better fingertip data (default policy)
-    sens = {}
-    for label, vm in (
-        ("camera_60hz_20ms", VisionModel(60.0, 0.020, vision.noise_m, vision.dropout)),
-        ("no_noise_no_dropout", VisionModel(vision.rate_hz, vision.latency_s, 0.0, 0.0)),
-        ("ideal_250hz_no_latency_no_noise", VisionModel(250.0, 0.0, 0.0, 0.0)),
-    ):
-        rs = [
-            run_approach(pol_scene, tr, World(pol_scene, latency_s=vm.latency_s, contact_model=cm), vision=vm,
-                         seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02)
-            for i, tr in enumerate(trajs)
-        ]
-        sens[label] = _brief(rs, trajs, in_place_m)
+    # what limits the meeting: the same approaches with better fingertip data (default policy), and
     # perfect prediction: the true touch point given to the world from the start, or only 100 ms
     # before the touch — what the servo alone allows
-    for label, ahead in (("perfect_prediction", None), ("perfect_prediction_100ms_before_touch", 0.1)):
-        rs = []
-        for i, tr in enumerate(trajs):
-            w = PerfectWorld(pol_scene, latency_s=vision.latency_s, contact_model=cm)
-            w.truth(tr, ahead)
-            rs.append(run_approach(pol_scene, tr, w, vision=vision, seed=args.seed + 5000 + i, in_place_m=in_place_m,
-                                   stop_after_contact_s=0.02))
-        sens[label] = _brief(rs, trajs, in_place_m)
+    sens = {key[1]: _brief(rs, trajs, in_place_m) for key, rs in results.items() if key[0] == "sens"}
     record["sensitivity"] = sens
     record["policies"] = {k: {kk: vv for kk, vv in v.items() if kk not in ("errors_mm", "speeds")} for k, v in policies.items()}
 

@@ -26,18 +26,26 @@ def seed_range(text: str) -> range:
     return r
 
 
-def add_engine_options(p: argparse.ArgumentParser) -> None:
+def add_engine_options(p: argparse.ArgumentParser, *, sweep: bool = False) -> None:
+    """``--workers N`` and ``--address ADDR``. A sequence build (``sweep=False``) uses this machine's
+    cores by default; a benchmark sweep (``sweep=True``) runs in its own process unless asked,
+    so that a plain ``vishap bench NAME`` starts no Ray."""
+    here = "1: in this process" if sweep else "this machine's cores"
     p.add_argument("--workers", type=int, default=None,
-                   help="tasks (sequences, cases) run at once (default: this machine's cores; with --address, the cluster's CPUs); "
-                        "1 renders in this process without Ray")
+                   help=f"tasks (sequences, cases) run at once as Ray tasks (default {here}; with --address, the "
+                        "cluster's CPUs); 1 runs them in this process without Ray")
     p.add_argument("--address", default=None,
                    help="an existing Ray cluster (HOST:PORT, ray://HOST:PORT or auto); unreachable: an error, never a local run")
+    p.set_defaults(engine_sweep=sweep)
 
 
 def default_workers(args: argparse.Namespace) -> int | None:
+    """The worker count ``--workers``/``--address`` ask for (None: as many as the cluster has CPUs)."""
     if args.workers is not None:
         return args.workers
-    return None if args.address is not None else (os.cpu_count() or 1)
+    if args.address is not None:
+        return None
+    return 1 if getattr(args, "engine_sweep", False) else (os.cpu_count() or 1)
 
 
 def run_seeds(args: argparse.Namespace, spec) -> int:

@@ -146,6 +146,10 @@ def map_cases(fn: Callable[[Any], Any], cases: Sequence, *, workers: int = 1, ad
     from tqdm import tqdm
 
     cases = list(cases)
+    if not cases:  # nothing to run: no Ray start, but a bad address is still an error
+        if address is not None:
+            probe(address)
+        return []
     with engine(workers, address, threads_per_worker=threads_per_worker) as eng:
         bar = tqdm(total=len(cases), desc=desc, unit="case", disable=not progress)
         try:

@@ -21,7 +21,6 @@ import contextlib
 import dataclasses
 import fcntl
 import os
-import shutil
 import tempfile
 import threading
 import time
@@ -31,15 +30,13 @@ from pathlib import Path
 
 from vishap._core.errors import ConfigError
 from vishap.scale.engine import engine, probe
+from vishap.scale.folders import commit_files, read_files, remove_leftovers
 from vishap.scale.manifest import FORMAT, MANIFEST, jsonable, load_manifest, save_manifest, sha256, verify
 
 __all__ = ["Job", "spec_parameters", "render_files", "build_sequences", "seed_folder"]
 
 LOCK = ".vishap-build.lock"
 _POLL_S = 0.5
-_UMASK = os.umask(0o022)
-os.umask(_UMASK)
-_DIR_MODE = 0o777 & ~_UMASK
 
 
 def seed_folder(seed: int) -> str:
@@ -105,7 +102,7 @@ def render_files(spec, report: Callable[[int], None] | None = None) -> dict:
             stop.set()
             if watcher is not None:
                 watcher.join()
-        files = {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+        files = read_files(folder)
     return {"files": files, "sha256": {k: sha256(v) for k, v in files.items()}, "seconds": time.perf_counter() - t0,
             "cpu_seconds": time.process_time() - c0}
 
@@ -153,39 +150,6 @@ def _locked(out: Path):
         f.close()
 
 
-def _remove_leftovers(out: Path, rel: str) -> None:
-    """Temporary folders of ``rel`` that a killed run left (the lock says no other run is writing)."""
-    final = out / rel
-    if final.parent.is_dir():
-        for p in final.parent.glob(f".{final.name}.tmp-*"):
-            shutil.rmtree(p, ignore_errors=True)
-        for p in final.parent.glob(f".{final.name}.old-*"):
-            shutil.rmtree(p, ignore_errors=True)
-
-
-def _commit(out: Path, rel: str, files: dict[str, bytes]) -> None:
-    """Write ``files`` into ``out/rel`` atomically: a hidden temporary sibling, then a rename."""
-    final = out / rel
-    final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.tmp-", dir=final.parent))
-    try:
-        for name, data in files.items():
-            p = tmp / name
-            p.parent.mkdir(parents=True, exist_ok=True)
-            p.write_bytes(data)
-        tmp.chmod(_DIR_MODE)  # a data set is shared: the umask's mode, not mkdtemp's private 0700
-        if final.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{final.name}.old-", dir=final.parent))
-            final.rename(old / "x")
-            tmp.rename(final)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            tmp.rename(final)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-
-
 def _first_difference(a: dict, b: dict) -> str:
     for k in sorted(set(a) | set(b)):
         if a.get(k) != b.get(k):
@@ -200,7 +164,7 @@ def _plan(jobs: Sequence[Job], out: Path, manifest: dict) -> tuple[list[Job], li
         if entry is not None and entry.get("parameters") != job.parameters:
             raise ConfigError(f"{job.rel} was built with other parameters ({_first_difference(entry.get('parameters', {}), job.parameters)}); "
                               "use another output folder", file=out / MANIFEST, field=f"sequences.{job.rel}")
-        _remove_leftovers(out, job.rel)
+        remove_leftovers(out, job.rel)
         if entry is not None and verify(out / job.rel, entry):
             skipped.append(job.rel)
         else:
@@ -241,7 +205,7 @@ def build_sequences(jobs: Sequence[Job], out: str | Path, *, workers: int | None
         bar = tqdm(total=sum(frames[j.rel] for j in todo), desc=command, unit="frame", disable=not progress)
 
         def finished(job: Job, res: dict) -> None:
-            _commit(out, job.rel, res["files"])
+            commit_files(out, job.rel, res["files"])
             manifest["sequences"][job.rel] = {
                 "parameters": job.parameters, "frames": frames[job.rel], "files": res["sha256"],
                 "bytes": sum(len(v) for v in res["files"].values()), "seconds": round(res["seconds"], 3),
