@@ -141,3 +141,92 @@ def test_reader_errors(tmp_path):
         SyntheticSequence(tmp_path)
     with pytest.raises(ConfigError):
         SequenceSpec(scene="wall", frames=2, msaa=3).validate()
+
+
+# -- compact storage: the image streams as lossless FFV1 videos (issue 18, item 4) ---------------------
+VIDEO = ["--fps", "10", "--frames", "18"]  # 10 hand-free frames to learn the background, then the hand enters
+
+
+@pytest.fixture(scope="module")
+def png_and_video(tmp_path_factory):
+    """The same sequence stored both ways (camera effects on)."""
+    base = tmp_path_factory.mktemp("stores")
+    common = ["synth", "--scene", "wall", "--seed", "3", "--resolution", "160x120", "--quiet", *VIDEO]
+    assert main([*common, "--out", str(base / "png")]) == 0
+    assert main([*common, "--store", "video", "--out", str(base / "video")]) == 0
+    return base / "png", base / "video"
+
+
+@pytest.mark.render
+def test_video_store_reads_back_bit_exact_in_any_order(png_and_video, tmp_path):
+    from vishap.vision.evaluate import open_sequence
+
+    png, video = png_and_video
+    names = set(_digest(video))
+    assert names == {"rig.yaml", "gt.npz", "frames.json", "left.mkv", "right.mkv", "labels/left.mkv", "labels/right.mkv"}
+    assert _digest(video)["gt.npz"] == _digest(png)["gt.npz"]
+    a, b, c = SyntheticSequence(png), SyntheticSequence(video), open_sequence(video)
+    assert len(a) == len(b) == len(c) == 18
+    assert (b[17].labels_left == 1).any()  # the hand is in view: a real test of the labels
+    for i in (*range(18), 5, 4, 4, 17, 0):  # forwards, jumps back (the decoder reopens) and on, a frame twice
+        fa, fb, fc = a[i], b[i], c[i]
+        assert fb.t == fa.t and fc.t == fa.t
+        for k in ("left", "right", "labels_left", "labels_right"):
+            ref = getattr(fa, k)
+            for got in (getattr(fb, k), getattr(fc, k)):
+                assert got.dtype == ref.dtype and got.shape == ref.shape and np.array_equal(got, ref), (i, k)
+    # deterministic bytes: the same arguments write the same videos
+    again = tmp_path / "again"
+    assert main(["synth", "--scene", "wall", "--seed", "3", "--resolution", "160x120", "--quiet", *VIDEO,
+                 "--store", "video", "--out", str(again)]) == 0
+    assert _digest(again) == _digest(video)
+
+
+@pytest.mark.render
+def test_track_and_eval_read_a_video_store_as_they_read_pngs(png_and_video, tmp_path, capsys):
+    import json
+
+    png, video = png_and_video
+
+    def timeless(d):
+        if isinstance(d, dict):
+            return {k: timeless(v) for k, v in d.items() if not (k.endswith("_ms") or k.startswith("ms_") or k == "folder")}
+        if isinstance(d, list):
+            return [timeless(v) for v in d]
+        return d
+
+    tracks = []
+    for src in (png, video):
+        out = tmp_path / f"{src.name}.json"
+        assert main(["track", str(src), "--out", str(out)]) == 0
+        rec = json.loads(out.read_text())
+        rec.pop("source")
+        tracks.append(timeless(rec))
+    assert tracks[0]["frames"] == 18 and tracks[0]["found"] > 0
+    assert tracks[0] == tracks[1]
+    capsys.readouterr()
+    evals = []
+    for src in (png, video):
+        assert main(["eval", "vision", str(src)]) == 0
+        evals.append(timeless(json.loads(capsys.readouterr().out)))
+    assert evals[0]["frames"] == 18 and evals[0]["detection_rate"] > 0 and evals[0] == evals[1]
+
+
+@pytest.mark.render
+def test_damaged_video_store_is_one_clear_error(png_and_video, tmp_path):
+    import shutil
+
+    from vishap._core.errors import VisionError
+
+    _, video = png_and_video
+    bad = tmp_path / "bad"
+    shutil.copytree(video, bad)
+    (bad / "right.mkv").unlink()
+    seq = SyntheticSequence(bad)
+    with pytest.raises(VisionError, match="right.mkv: missing video"):
+        seq[0]
+    (bad / "frames.json").write_text("{}")
+    with pytest.raises(VisionError, match="frames.json"):
+        SyntheticSequence(bad)
+    with pytest.raises(ConfigError, match="unknown store"):
+        SequenceSpec(scene="wall", frames=2, store="zip").validate()

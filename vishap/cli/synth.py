@@ -50,6 +50,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="exact pixels: no sensor noise, defocus, motion blur or auto-exposure")
     p.add_argument("--msaa", type=int, default=0, help="anti-aliasing samples (0, 2, 4, 8; labels then cost a pass)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--store", choices=("png", "video"), default="png",
+                   help="png: one file per image (default); video: each image stream as a lossless FFV1 video "
+                        "(smaller; read by 'vishap track' and 'vishap eval' like the PNGs)")
     _add_scale_options(p)
     add_json_flag(p)
     p.set_defaults(func=_run)
@@ -65,7 +68,7 @@ def _run(args: argparse.Namespace) -> int:
                         width=args.resolution[0], height=args.resolution[1], rig=rig, lighting=args.lighting,
                         skin_tone=args.skin_tone, background=args.background, occlusion=args.occlusion,
                         effects=args.effects, msaa=args.msaa, fps=args.fps, hand_free_frames=args.hand_free,
-                        start_s=args.start)
+                        start_s=args.start, store=args.store)
     _check_render_args(spec)
     if args.seeds is not None or args.workers is not None or args.address is not None:
         return _run_seeds(args, spec)

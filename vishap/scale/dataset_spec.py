@@ -22,7 +22,8 @@
 
 Sequence options (each a value or a list): ``trajectory``, ``frames``, ``resolution`` (WxH),
 ``fps``, ``hand_free``, ``start_s``, ``lighting``, ``skin_tone``, ``background``, ``occlusion``,
-``effects`` (camera effects: noise, defocus, motion blur, auto-exposure), ``msaa``. The spec is
+``effects`` (camera effects: noise, defocus, motion blur, auto-exposure), ``msaa``, ``store``
+(``png`` or ``video``: lossless FFV1, :mod:`vishap.scale.store`). The spec is
 checked on load, every sequence included: the first problem is one :class:`ConfigError` naming the
 file and the field (``groups.1.skin_tone``).
 """
@@ -59,6 +60,7 @@ class SequenceOptions(Schema):
     occlusion: bool | list[bool] | None = None
     effects: bool | list[bool] | None = None
     msaa: int | list[int] | None = None
+    store: str | list[str] | None = None
 
     @field_validator("*")
     @classmethod
@@ -107,7 +109,7 @@ class DatasetSpec(Schema):
 
 _SPEC_FIELDS = {"trajectory": "trajectory", "frames": "frames", "fps": "fps", "hand_free": "hand_free_frames",
                 "start_s": "start_s", "lighting": "lighting", "skin_tone": "skin_tone", "background": "background",
-                "occlusion": "occlusion", "effects": "effects", "msaa": "msaa"}
+                "occlusion": "occlusion", "effects": "effects", "msaa": "msaa", "store": "store"}
 
 _SPEC_KEYS = {v: k for k, v in _SPEC_FIELDS.items()}
 

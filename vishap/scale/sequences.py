@@ -22,7 +22,6 @@ import dataclasses
 import fcntl
 import os
 import tempfile
-import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -56,6 +55,8 @@ class Job:
 def spec_parameters(spec, *, rig_sha256: str | None = None) -> dict:
     """The manifest's record of a :class:`SequenceSpec`: every field, the rig as its file's SHA-256."""
     d = {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec) if f.name not in ("rig", "T_robot_cam")}
+    if d.get("store") == "png":
+        del d["store"]  # the default layout: manifests written before there was a choice still match
     if spec.rig is not None:
         d["rig_sha256"] = rig_sha256 or "in-memory"
     if spec.T_robot_cam is not None:
@@ -76,13 +77,6 @@ def check_spec(spec) -> int:
     return len(p.times)
 
 
-def _watch(folder: Path, report: Callable[[int], None], stop: threading.Event) -> None:
-    # the right label image is the last file of a frame the writer starts; counting them shows
-    # progress without reaching into the writer
-    while not stop.wait(_POLL_S):
-        report(sum(1 for _ in folder.glob("*/labels/right/*.png")))
-
-
 def render_files(spec, report: Callable[[int], None] | None = None) -> dict:
     """Render one sequence with :func:`~vishap.sim.writer.write_sequence` in a temporary folder and
     return its files: ``{"files": {relpath: bytes}, "sha256": {relpath: hex}, "seconds": s, "cpu_seconds": s}``
@@ -91,18 +85,7 @@ def render_files(spec, report: Callable[[int], None] | None = None) -> dict:
 
     t0, c0 = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory(prefix="vishap-seq-") as tmp:
-        stop = threading.Event()
-        watcher = None
-        if report is not None:
-            watcher = threading.Thread(target=_watch, args=(Path(tmp), report, stop), daemon=True)
-            watcher.start()
-        try:
-            folder = write_sequence(Path(tmp) / "seq", spec)
-        finally:
-            stop.set()
-            if watcher is not None:
-                watcher.join()
-        files = read_files(folder)
+        files = read_files(write_sequence(Path(tmp) / "seq", spec, on_frame=report))
     return {"files": files, "sha256": {k: sha256(v) for k, v in files.items()}, "seconds": time.perf_counter() - t0,
             "cpu_seconds": time.process_time() - c0}
 

@@ -4,7 +4,8 @@
 ``SyntheticSequence(folder)`` has ``.rig`` (:class:`~vishap.vision.rig.StereoRig`), ``.T_robot_cam``
 (4, 4; None for a folder without it, e.g. one written by another tool), ``.gt`` (dict of the ``gt.npz`` arrays), ``len()``, and ``[i]`` / iteration giving
 :class:`SynthFrame` ``(index, t, left, right, labels_left, labels_right)`` with images as written
-(BGR ``uint8``, labels ``uint8``). Problems raise :class:`~vishap._core.errors.VisionError` naming the file.
+(BGR ``uint8``, labels ``uint8``), from either layout of :mod:`vishap.scale.store` (PNG files or
+lossless video). Problems raise :class:`~vishap._core.errors.VisionError` naming the file.
 """
 from __future__ import annotations
 
@@ -13,10 +14,10 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from vishap._core.errors import ConfigError, VisionError
+from vishap.scale.store import STREAMS, open_frames
 from vishap.vision.rig import StereoRig
 
 __all__ = ["SynthFrame", "SyntheticSequence"]
@@ -56,9 +57,10 @@ class SyntheticSequence:
         T = self.gt.get("T_robot_cam")  # absent in folders written by other tools (then None)
         self.T_robot_cam = None if T is None else np.asarray(T, dtype=np.float64)
         self.t = np.asarray(self.gt["t"], dtype=np.float64)
-        n_png = len(list((self.folder / "left").glob("*.png")))
-        if n_png != len(self.t):
-            raise VisionError(f"{self.folder}: {n_png} images in left/ but {len(self.t)} frames in gt.npz")
+        self.frames = open_frames(self.folder)
+        if len(self.frames) != len(self.t):
+            where = "left/" if self.frames.store == "png" else "frames.json"
+            raise VisionError(f"{self.folder}: {len(self.frames)} images in {where} but {len(self.t)} frames in gt.npz")
 
     @property
     def scene(self) -> str:
@@ -67,10 +69,11 @@ class SyntheticSequence:
     def __len__(self) -> int:
         return len(self.t)
 
-    def _read(self, path: Path, flag: int) -> np.ndarray:
-        img = cv2.imread(str(path), flag)
+    def _read(self, stream: str, i: int) -> np.ndarray:
+        img = self.frames.read(stream, i)
         if img is None:
-            raise VisionError(f"{path}: missing or unreadable image")
+            where = f"{stream}/{i:06d}.png" if self.frames.store == "png" else f"{stream}.mkv frame {i}"
+            raise VisionError(f"{self.folder / where}: missing or unreadable image")
         return img
 
     def __getitem__(self, i: int) -> SynthFrame:
@@ -81,12 +84,8 @@ class SyntheticSequence:
             i += n
         if not 0 <= i < n:
             raise IndexError(f"frame {i} out of range (sequence has {n} frames)")
-        name = f"{int(i):06d}.png"
-        f = self.folder
-        return SynthFrame(int(i), float(self.t[i]), self._read(f / "left" / name, cv2.IMREAD_COLOR),
-                          self._read(f / "right" / name, cv2.IMREAD_COLOR),
-                          self._read(f / "labels" / "left" / name, cv2.IMREAD_UNCHANGED),
-                          self._read(f / "labels" / "right" / name, cv2.IMREAD_UNCHANGED))
+        left, right, labels_left, labels_right = (self._read(s, int(i)) for s in STREAMS)
+        return SynthFrame(int(i), float(self.t[i]), left, right, labels_left, labels_right)
 
     def __iter__(self):
         for i in range(len(self)):

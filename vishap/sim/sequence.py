@@ -68,6 +68,9 @@ class SequenceSpec:
     fps: float | None = None
     hand_free_frames: int | None = None
     start_s: float = 0.0
+    #: how :mod:`vishap.sim.writer` stores the frames: ``png`` (one file per image) or ``video``
+    #: (lossless FFV1, :mod:`vishap.scale.store`); the rendered frames are the same
+    store: str = "png"
 
     def validate(self) -> None:
         """Check everything a user can get wrong before anything is rendered or written."""
@@ -85,6 +88,10 @@ class SequenceSpec:
             raise ConfigError(f"start time must be >= 0 s, got {self.start_s}", field="start_s")
         if int(self.msaa) not in (0, 2, 4, 8):
             raise ConfigError(f"msaa must be 0, 2, 4 or 8, got {self.msaa}", field="msaa")
+        from vishap.scale.store import STORES
+
+        if self.store not in STORES:
+            raise ConfigError(f"unknown store {self.store!r}; expected one of {list(STORES)}", field="store")
 
 
 def light_function(mode: str, duration_s: float, seed: int):

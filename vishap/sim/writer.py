@@ -7,6 +7,10 @@
     OUT/labels/right/000000.png …
     OUT/gt.npz                        ground truth (datasets/synthetic/README.md documents every array)
 
+or, with ``SequenceSpec(store="video")``, the four image streams as lossless FFV1 videos
+(``left.mkv``, ``right.mkv``, ``labels/left.mkv``, ``labels/right.mkv`` and ``frames.json``;
+:mod:`vishap.scale.store`), read back pixel for pixel by the same readers.
+
 Everything is checked before the first pixel is rendered; the sequence is written into a hidden
 temporary folder beside ``OUT`` and renamed into place at the end (:mod:`vishap._core.output`), so a
 failure (bad input, a full disk, Ctrl-C, SIGTERM) leaves no half-written folder and removes nothing
@@ -17,25 +21,19 @@ from __future__ import annotations
 
 import io
 import zipfile
-from collections import deque
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Callable
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from vishap._core.errors import ConfigError
 from vishap._core.output import output_dir
+from vishap.scale.store import frame_name, make_sink
 from vishap.sim.sequence import SequenceSpec, constants, make_renderer, prepare, render_frames
 
 __all__ = ["write_sequence", "save_npz_deterministic", "frame_name"]
 
-_PNG = [cv2.IMWRITE_PNG_COMPRESSION, 1]  # noisy 640×480 frames: 25 ms vs 38 ms at level 3, +1 % size
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
-
-
-def frame_name(i: int) -> str:
-    return f"{int(i):06d}.png"
 
 
 def save_npz_deterministic(path: str | Path, arrays: dict) -> Path:
@@ -52,13 +50,10 @@ def save_npz_deterministic(path: str | Path, arrays: dict) -> Path:
     return path
 
 
-def _write_png(path: Path, img: np.ndarray) -> None:
-    if not cv2.imwrite(str(path), img, _PNG):
-        raise OSError(f"cv2.imwrite failed for {path}")
-
-
-def write_sequence(out: str | Path, spec: SequenceSpec, *, overwrite: bool = False, progress: bool = False) -> Path:
+def write_sequence(out: str | Path, spec: SequenceSpec, *, overwrite: bool = False, progress: bool = False,
+                   on_frame: Callable[[int], None] | None = None) -> Path:
     """Render ``spec`` and write it to the folder ``out`` (see the module docstring); returns ``out``.
+    ``on_frame(n)`` is called after each frame with the number of frames handed to the writer.
 
     ``out`` must not exist or be empty, unless ``overwrite``. Raises :class:`ConfigError` with one
     clear message for bad input; nothing is left on disk in that case, and nothing this call did
@@ -67,44 +62,36 @@ def write_sequence(out: str | Path, spec: SequenceSpec, *, overwrite: bool = Fal
     p = prepare(spec)  # unknown scene / trajectory, bad frames, lighting, … fail here
     with output_dir(out, overwrite=overwrite) as folder:
         try:
-            _write_into(folder.path, p, progress)
+            _write_into(folder.path, p, progress, on_frame)
         except OSError as exc:
             raise ConfigError(f"cannot write the sequence ({exc.strerror or exc})", file=folder.final) from None
     return folder.final
 
 
-def _write_into(folder: Path, p, progress: bool) -> None:
+def _write_into(folder: Path, p, progress: bool, on_frame) -> None:
     from tqdm import tqdm
 
-    dirs = {k: folder / k for k in ("left", "right", "labels/left", "labels/right")}
-    for d in dirs.values():
-        d.mkdir(parents=True)
     p.rig.save(folder / "rig.yaml")
     rows = []
     renderer = make_renderer(p)
-    # PNG encoding (which releases the GIL) overlaps the rendering of the next frame; at most
-    # two frames are waiting, and the first failure is raised
-    pool = ThreadPoolExecutor(max_workers=2)
-    pending: deque = deque()
+    sink = make_sink(p.spec.store, folder, p.rig.image_size, p.trajectory.spec.fps)
+    ok = False
     try:
         frames = render_frames(p, renderer)
         bar = tqdm(frames, total=len(p.times), desc=f"synth {p.scene_spec.name}", unit="frame", disable=not progress)
         for _, pair, row in bar:
-            name = frame_name(row["index"])
-            for sub, img in (("left", pair.left), ("right", pair.right), ("labels/left", pair.labels_left),
-                             ("labels/right", pair.labels_right)):
-                pending.append(pool.submit(_write_png, dirs[sub] / name, img))
-            while len(pending) > 8:
-                pending.popleft().result()
+            sink.write(int(row["index"]), {"left": pair.left, "right": pair.right, "labels/left": pair.labels_left,
+                                           "labels/right": pair.labels_right})
             rows.append(row)
-        while pending:
-            pending.popleft().result()
+            if on_frame is not None:
+                on_frame(len(rows))
         consts = constants(p, renderer)
+        ok = True
     finally:
-        for f in pending:
-            f.cancel()
-        pool.shutdown(wait=True)
-        renderer.close()
+        try:
+            sink.close(ok)
+        finally:
+            renderer.close()
     gt = {k: np.stack([np.asarray(r[k]) for r in rows]) for k in rows[0]}
     gt["index"] = gt["index"].astype(np.int64)
     gt["phase"] = gt["phase"].astype(np.int64)

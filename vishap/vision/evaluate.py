@@ -18,10 +18,10 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from vishap._core.errors import VisionError
+from vishap.scale.store import open_frames
 from vishap.vision.pipeline import PipelineConfig, VisionPipeline
 from vishap.vision.rig import StereoRig
 from vishap.vision.skin_model import SkinModel
@@ -41,36 +41,34 @@ class _Frame:
 
 class SequenceReader:
     """Reads the folder layout ``vishap synth`` writes (``rig.yaml``, ``left/``, ``right/``,
-    ``labels/left|right/``, ``gt.npz``). Vision reads recordings itself: it never imports the
-    simulator (:mod:`vishap.sim` builds on vision, not the other way round)."""
+    ``labels/left|right/``, ``gt.npz``; or the images as lossless videos, :mod:`vishap.scale.store`).
+    Vision reads recordings itself: it never imports the simulator (:mod:`vishap.sim` builds on
+    vision, not the other way round)."""
 
     def __init__(self, folder: str | os.PathLike):
         self.folder = Path(folder)
         if not (self.folder / "rig.yaml").is_file():
             raise VisionError(f"{self.folder}: not a synthetic sequence (no rig.yaml)")
         self.rig = StereoRig.load(self.folder / "rig.yaml")
-        self._left = sorted((self.folder / "left").glob("*.png"))
+        self._frames = open_frames(self.folder)
         gt_path = self.folder / "gt.npz"
         self.gt = dict(np.load(gt_path, allow_pickle=False)) if gt_path.is_file() else {}
         self.T_robot_cam = self.gt.get("T_robot_cam")
-        if "t" in self.gt and len(self.gt["t"]) != len(self._left):
-            raise VisionError(f"{self.folder}: {len(self._left)} images in left/ but {len(self.gt['t'])} frames in gt.npz")
+        if "t" in self.gt and len(self.gt["t"]) != len(self._frames):
+            raise VisionError(f"{self.folder}: {len(self._frames)} images in the sequence but {len(self.gt['t'])} frames in gt.npz")
 
     def __len__(self) -> int:
-        return len(self._left)
+        return len(self._frames)
 
     def __getitem__(self, i: int) -> _Frame:
-        name = self._left[i].name
-        def read(p, flag=cv2.IMREAD_COLOR):
-            img = cv2.imread(str(p), flag)
-            if img is None and flag == cv2.IMREAD_COLOR:
-                raise VisionError(f"{p}: missing or unreadable image")
+        def read(stream, colour=True):
+            img = self._frames.read(stream, i)
+            if img is None and colour:
+                raise VisionError(f"{self.folder}: {stream} image of frame {i} missing or unreadable")
             return img
 
         t = float(self.gt["t"][i]) if "t" in self.gt else float(i)
-        lab = self.folder / "labels"
-        return _Frame(i, t, read(self._left[i]), read(self.folder / "right" / name),
-                      read(lab / "left" / name, cv2.IMREAD_UNCHANGED), read(lab / "right" / name, cv2.IMREAD_UNCHANGED))
+        return _Frame(i, t, read("left"), read("right"), read("labels/left", False), read("labels/right", False))
 
     def __iter__(self):
         for i in range(len(self)):

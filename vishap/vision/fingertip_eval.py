@@ -145,6 +145,8 @@ def open_mono_frames(spec: str | os.PathLike) -> MonoFrames:
         return open_mono_frames(left) if Path(left).suffix.lower() in _VIDEO_EXT else _bad_source(s)
     p = Path(s)
     if p.is_dir():
+        if (p / "rig.yaml").is_file() and (p / "left.mkv").is_file():  # stored as video (vishap.scale.store)
+            return MonoFrames(s, "synth", video=str(p / "left.mkv"))
         if (p / "rig.yaml").is_file() and (p / "left").is_dir():
             files = sorted(f for f in (p / "left").iterdir() if f.suffix.lower() in _IMAGE_EXT)
             ts = _synth_times(p, len(files))
