@@ -133,20 +133,22 @@ def test_simulated_two_node_cluster_writes_identical_bytes(tmp_path):
     import ray
     from ray.cluster_utils import Cluster
 
+    jobs = _jobs([0, 1]) + _jobs([2], store="video")  # the compact store travels and matches too
     here = tmp_path / "here"
-    build_sequences(_jobs([0, 1]), here, workers=1, progress=False)
+    build_sequences(jobs, here, workers=1, progress=False)
     cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
     try:
         cluster.add_node(num_cpus=1)
         cluster.wait_for_nodes()
         there = tmp_path / "there"
-        summary = build_sequences(_jobs([0, 1]), there, workers=None, address=cluster.address, progress=False)
+        summary = build_sequences(jobs, there, workers=None, address=cluster.address, progress=False)
     finally:
         ray.shutdown()
         cluster.shutdown()
     assert summary["engine"]["mode"] == "cluster" and summary["engine"]["nodes"] == 2
     assert summary["engine"]["workers"] == 2
     nodes = {e["node"] for e in _manifest(there)["sequences"].values()}
-    assert len(nodes) == 2  # one sequence on each node
-    for s in (0, 1):
+    assert len(nodes) == 2  # sequences built on both nodes
+    assert "left.mkv" in _digest(there / "seed-000002")
+    for s in (0, 1, 2):
         assert _digest(there / f"seed-{s:06d}") == _digest(here / f"seed-{s:06d}")

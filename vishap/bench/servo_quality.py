@@ -240,11 +240,10 @@ def _demo_folders(args, out: Path) -> list[tuple[str, int, Path]]:
             folders.append((scene, seed, d))
     # the demos as Ray tasks with --workers/--address; their files come back and are written here
     from vishap.scale import map_cases
-    from vishap.scale.cli import default_workers
+    from vishap.scale.cli import engine_args
     from vishap.scale.folders import commit_files
 
-    ran = map_cases(demo_files, [fields for _, fields in todo], workers=default_workers(args), address=args.address,
-                    desc="demos")
+    ran = map_cases(demo_files, [fields for _, fields in todo], desc="demos", **engine_args(args))
     for (name, _), files in zip(todo, ran):
         commit_files(base, name, files)
     return folders

@@ -318,9 +318,9 @@ def run(args) -> dict:
     from vishap.robot.stability import tip_damping
 
     t0 = time.perf_counter()
-    from vishap.scale.cli import default_workers
+    from vishap.scale.cli import engine_args
 
-    recs = run_sweeps(int(args.substeps), bool(args.quick), workers=default_workers(args), address=args.address)
+    recs = run_sweeps(int(args.substeps), bool(args.quick), **engine_args(args))
     elapsed = time.perf_counter() - t0
     out = Path(args.out)
     b_tip = tip_damping()

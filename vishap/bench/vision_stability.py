@@ -152,12 +152,12 @@ def _point(case: tuple) -> dict:
 
 def run(args: argparse.Namespace) -> dict:
     from vishap.scale import map_cases
-    from vishap.scale.cli import default_workers
+    from vishap.scale.cli import engine_args
 
     rec = {"machine": machine_info(), "nominal": NOMINAL, "sweeps": {}}
     cases = [(factor, v, args.frames) for factor, values in SWEEPS.items()
              for v in ([values[0], values[-1]] if args.quick else values)]
-    rows = map_cases(_point, cases, workers=default_workers(args), address=args.address, desc="vision_stability")
+    rows = map_cases(_point, cases, desc="vision_stability", **engine_args(args))
     for (factor, _, _), row in zip(cases, rows):
         rec["sweeps"].setdefault(factor, []).append(row)
     rec["chart"] = str(_chart(rec, f"{args.out}/vision_stability.png"))

@@ -226,7 +226,7 @@ def _approach(case: tuple):
 
 def run(args) -> dict:
     from vishap.scale import map_cases
-    from vishap.scale.cli import default_workers
+    from vishap.scale.cli import engine_args
     from vishap.world.closed_loop import FingerPad, VisionModel
     from vishap.world.scene import load_scene
     from vishap.world.trajectories import make_approaches
@@ -262,7 +262,7 @@ def run(args) -> dict:
     for label, ahead in (("perfect_prediction", None), ("perfect_prediction_100ms_before_touch", 0.1)):
         blocks[("sens", label)] = on_policy_set({"perfect": ahead, "contact_model": cm})
     flat = [c for cases in blocks.values() for c in cases]
-    done = iter(map_cases(_approach, flat, workers=default_workers(args), address=args.address, desc="world"))
+    done = iter(map_cases(_approach, flat, desc="world", **engine_args(args)))
     results = {key: [next(done) for _ in cases] for key, cases in blocks.items()}
 
     per_scene = {key[1]: rs for key, rs in results.items() if key[0] == "scene"}

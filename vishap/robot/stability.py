@@ -103,7 +103,9 @@ def run_free_space(spec: RunSpec) -> dict:
     n = int(round(spec.duration_s * plant.params.servo_rate_hz))
     period = 1.0 / spec.rate_hz
     p = np.empty((n, 3))
-    ref = np.empty((n, 3))
+    # the whole reference up front: a run that leaves the workspace stops early, and its error is
+    # taken over every tick (an unfilled tail read uninitialised memory: errors changed run to run)
+    ref = np.array([START + STEP * _smooth((i * plant.dt - 0.05) / 0.4) for i in range(n)])
     X = START.copy()
     t_sample = -1.0
     status = "ok"
@@ -113,7 +115,6 @@ def run_free_space(spec: RunSpec) -> dict:
         if ts != t_sample:  # a new vision sample
             t_sample = ts
             X = START + STEP * _smooth((ts - 0.05) / 0.4)
-        ref[i] = START + STEP * _smooth((t - 0.05) / 0.4)
         try:
             servo.tick(t, X, t_sample=t_sample)
         except DeviceError as exc:  # pragma: no cover - the controller never commands beyond limits

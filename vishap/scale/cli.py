@@ -9,7 +9,7 @@ import os
 
 from vishap._core.errors import ConfigError
 
-__all__ = ["add_engine_options", "seed_range", "default_workers", "run_seeds"]
+__all__ = ["add_engine_options", "seed_range", "default_workers", "engine_args", "run_seeds"]
 
 
 def seed_range(text: str) -> range:
@@ -46,6 +46,14 @@ def default_workers(args: argparse.Namespace) -> int | None:
     if args.address is not None:
         return None
     return 1 if getattr(args, "engine_sweep", False) else (os.cpu_count() or 1)
+
+
+def engine_args(args: argparse.Namespace) -> dict:
+    """``workers=…, address=…`` for :func:`~vishap.scale.map_cases` from parsed options; options
+    built without the engine's (a caller's own namespace) run in this process."""
+    if not hasattr(args, "workers"):
+        return {"workers": 1, "address": None}
+    return {"workers": default_workers(args), "address": args.address}
 
 
 def run_seeds(args: argparse.Namespace, spec) -> int:
