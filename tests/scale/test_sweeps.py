@@ -49,6 +49,25 @@ def test_sweeps_default_to_this_process_and_take_the_engine_options():
     assert default_workers(_args(stability, ["--address", "head:6379"], ".")) is None
 
 
+@pytest.mark.parametrize("bench", ["stability", "world", "vision_stability", "servo_quality"])
+def test_a_sweep_given_an_unreachable_cluster_stops_with_one_error(bench, tmp_path, capsys):
+    import socket
+
+    from vishap.cli import main
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        address = f"127.0.0.1:{s.getsockname()[1]}"
+    out = tmp_path / "out"
+    argv = ["bench", bench, "--address", address, "--out", str(out)]
+    argv += {"stability": ["--quick"], "world": ["--approaches", "1", "--policy-approaches", "1", "--scenes", "wall"],
+             "vision_stability": ["--quick"], "servo_quality": ["--seeds", "0", "--scenes", "wall"]}[bench]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"cannot reach the Ray cluster at {address}" in err and err.count("\n") == 1
+    assert not out.exists()
+
+
 def test_stability_sweep_on_two_workers_equals_serial(ray_two_cpus):
     from vishap.bench.stability import run_sweeps
 
