@@ -260,7 +260,7 @@ def _chart(r: dict, out: Path) -> None:
             c.scatter(m["write_ms_per_frame"], m["bytes_per_frame"] / 1e6, marker=marker,
                       color="0.5" if store == "png" else "tab:blue")
             c.annotate(f"{store} {res}\nread {m['read_ms_per_frame']:.0f} ms", (m["write_ms_per_frame"], m["bytes_per_frame"] / 1e6),
-                       fontsize=7, xytext=(4, 4), textcoords="offset points")
+                       fontsize=7, xytext=(4, 4 if store == "png" else -18), textcoords="offset points")
     c.set_xlabel("write ms per frame (4 images, wall)")
     c.set_ylabel("MB per frame")
     c.set_title("storage: PNG vs lossless FFV1 video (bit-exact: "
