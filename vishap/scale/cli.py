@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 
 from vishap._core.errors import ConfigError
@@ -42,6 +41,7 @@ def default_workers(args: argparse.Namespace) -> int | None:
 
 def run_seeds(args: argparse.Namespace, spec) -> int:
     """``vishap synth --seeds A:B [--workers N] [--address ADDR]``: one sequence per seed."""
+    from vishap.cli import report, show_progress
     from vishap.scale.manifest import sha256
     from vishap.scale.sequences import Job, build_sequences, seed_folder, spec_parameters
 
@@ -62,7 +62,10 @@ def run_seeds(args: argparse.Namespace, spec) -> int:
     common.pop("seed")
     common["seeds"] = [args.seeds.start, args.seeds.stop]
     summary = build_sequences(jobs, args.out, workers=default_workers(args), address=args.address,
-                              command="synth", parameters=common, progress=not args.quiet)
-    print(json.dumps({"out": summary["out"], "built": len(summary["built"]), "skipped": len(summary["skipped"]),
-                      "seconds": round(summary["seconds"], 3), "engine": summary["engine"]}))
+                              command="synth", parameters=common, progress=show_progress(args))
+    rec = {"out": summary["out"], "built": len(summary["built"]), "skipped": len(summary["skipped"]),
+           "seconds": round(summary["seconds"], 3), "engine": summary["engine"]}
+    report(args, rec, [f"synth seeds {args.seeds.start}:{args.seeds.stop}: {rec['built']} built, {rec['skipped']} "
+                       f"already there, in {rec['seconds']:.1f} s",
+                       f"  in {rec['out']} (one seed-NNNNNN folder each; checksums: manifest.json)"])
     return 0
