@@ -263,3 +263,34 @@ def test_demo_out_onto_a_file_is_one_error(tmp_path, capsys):
     f.write_text("x")
     assert main(["demo", "wall", "--frames", "12", "--no-video", "--out", str(f)]) == 2
     assert "not a folder" in _one_line(capsys.readouterr().err) and f.read_text() == "x"
+
+
+# ---------------------------------------------------------------- benchmarks
+def test_bench_tracking_policy_chart_has_no_empty_panel(tmp_path, monkeypatch):
+    """The quick run is 1 s long: the trace panel must still show the finger and the three policies."""
+    import argparse
+
+    from vishap.bench import tracking
+
+    plotted = {}
+    real = tracking.save_figure
+
+    def keep(fig, path):
+        plotted[Path(path).name] = [sum(len(line.get_xdata()) for line in ax.lines) + len(ax.patches)
+                                    for ax in fig.axes]
+        return real(fig, path)
+
+    monkeypatch.setattr(tracking, "save_figure", keep)
+    tracking.run(argparse.Namespace(out=str(tmp_path), gains=None, latency_ms=30.0, duration=1.0, quick=True))
+    panels = plotted["tracking_policies.png"]
+    assert len(panels) == 3 and all(n > 0 for n in panels), panels
+
+
+def test_bench_shows_progress_over_its_cases(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert main(["bench", "tracking", "--quick", "--out", str(tmp_path / "b")]) == 0
+    assert re.search(r"bench tracking: policies: .* \d+/3 \[\d\d:\d\d<", capsys.readouterr().err)
+    assert main(["bench", "tracking", "--quick", "--quiet", "--out", str(tmp_path / "c")]) == 0
+    captured = capsys.readouterr()
+    assert "/3 [" not in captured.err
+    assert "tracking.json" in captured.out and "{" not in captured.out

@@ -224,19 +224,23 @@ def _demo_folders(args, out: Path) -> list[tuple[str, int, Path]]:
     if bad or not scenes or not seeds:
         raise ConfigError(f"expected scenes from {SCENES} and at least one seed, got {args.scenes!r} / {args.seeds!r}",
                           field="--scenes")
+    import itertools
+
+    from vishap._core.results import progress
+
     base = Path(args.logs) if args.logs else out / "demos"
     folders = []
-    for scene in scenes:
-        for seed in seeds:
-            d = base / f"{scene}_{seed}"
-            if not (d / "summary.json").is_file():
-                if args.logs:
-                    raise ConfigError(f"no demo output in {d} (expected log.npz and summary.json)", field="--logs")
-                from vishap.apps import DemoConfig, run_demo
+    for scene, seed in progress(list(itertools.product(scenes, seeds)), desc="bench servo_quality: demos",
+                                unit="demo", quiet=getattr(args, "quiet", False)):
+        d = base / f"{scene}_{seed}"
+        if not (d / "summary.json").is_file():
+            if args.logs:
+                raise ConfigError(f"no demo output in {d} (expected log.npz and summary.json)", field="--logs")
+            from vishap.apps import DemoConfig, run_demo
 
-                run_demo(DemoConfig(scene=scene, seed=seed, substeps=int(args.substeps), encoder="encoder",
-                                    video=False, save_frames=False), d)
-            folders.append((scene, seed, d))
+            run_demo(DemoConfig(scene=scene, seed=seed, substeps=int(args.substeps), encoder="encoder",
+                                video=False, save_frames=False), d)
+        folders.append((scene, seed, d))
     return folders
 
 

@@ -113,16 +113,19 @@ def renderable_stiffness(recs: list[dict]) -> dict:
             "passive_but_unstable": sum(1 for r in con if r["outcome"] != "stable" and r["colgate_passive"])}
 
 
-def run_sweeps(substeps: int, quick: bool = False) -> list[dict]:
+def run_sweeps(substeps: int, quick: bool = False, *, progress: bool = False) -> list[dict]:
+    """Every sweep's runs, listed first and then run, so that the progress bar (``progress``: on
+    stderr, on a terminal) knows the total."""
+    import functools
+
+    from vishap._core.results import progress as bar
     from vishap.robot.stability import RunSpec, passivity_margin, run_free_space, run_wall
 
     g = _grids(quick)
-    recs: list[dict] = []
+    jobs: list[tuple[str, object, dict]] = []  # (sweep, run, extra fields)
 
-    def add(sweep, fn, **kw):
-        r = fn(RunSpec(substeps=substeps, **kw))
-        r["sweep"] = sweep
-        recs.append(r)
+    def add(sweep, fn, extra=None, **kw):
+        jobs.append((sweep, functools.partial(fn, RunSpec(**{"substeps": substeps, **kw})), extra or {}))
 
     for sensor in g["sensors"]:
         for kp in g["kp"]:
@@ -141,17 +144,19 @@ def run_sweeps(substeps: int, quick: bool = False) -> list[dict]:
     for mode in g["modes"]:
         for K in g["contact_k"]:
             for B in g["contact_b"]:
-                r = run_wall(RunSpec(substeps=substeps, sensor="encoder", wall_k=K, wall_b=B, mode=mode, jitter=True))
-                r["sweep"] = "contact"
-                r["colgate_passive"] = passivity_margin(K, B, b_tip, T) > 0
-                recs.append(r)
+                add("contact", run_wall, {"colgate_passive": passivity_margin(K, B, b_tip, T) > 0},
+                    sensor="encoder", wall_k=K, wall_b=B, mode=mode, jitter=True)
     for sub in sorted({1, substeps}):
         for sensor in g["sensors"]:
             for K in g["wall_k"]:
                 for B in g["wall_b"]:
-                    r = run_wall(RunSpec(substeps=sub, sensor=sensor, wall_k=K, wall_b=B))
-                    r["sweep"] = "wall"
-                    recs.append(r)
+                    add("wall", run_wall, substeps=sub, sensor=sensor, wall_k=K, wall_b=B)
+    recs: list[dict] = []
+    for sweep, job, extra in bar(jobs, desc="bench stability", unit="run", quiet=not progress):
+        r = job()
+        r["sweep"] = sweep
+        r.update(extra)
+        recs.append(r)
     return recs
 
 
@@ -307,7 +312,9 @@ def run(args) -> dict:
     from vishap.robot.stability import tip_damping
 
     t0 = time.perf_counter()
-    recs = run_sweeps(int(args.substeps), bool(args.quick))
+    from vishap._core.results import progress_shown
+
+    recs = run_sweeps(int(args.substeps), bool(args.quick), progress=progress_shown(getattr(args, "quiet", False)))
     elapsed = time.perf_counter() - t0
     out = Path(args.out)
     b_tip = tip_damping()

@@ -134,11 +134,16 @@ METHODS = ("tracked window", "full frame", "MOG2 + same detector")
 
 
 def run(args: argparse.Namespace) -> dict:
+    from vishap._core.results import progress
+
     rec = {"machine": machine_info(), "nominal": NOMINAL, "sweeps": {}}
-    for factor, values in SWEEPS.items():
-        vals = [values[0], values[-1]] if args.quick else values
+    picked = {f: [values[0], values[-1]] if args.quick else values for f, values in SWEEPS.items()}
+    bar = progress(total=sum(len(v) for v in picked.values()), desc="bench vision_stability", unit="case",
+                   quiet=getattr(args, "quiet", False))
+    for factor, vals in picked.items():
         rows = []
         for v in vals:
+            bar.update(1)
             p = dict(NOMINAL, **{factor: v})
             rig, frames, gt, occ0 = _frames(p, args.frames)
             row = {"value": v}
@@ -146,6 +151,7 @@ def run(args: argparse.Namespace) -> dict:
                 row[m] = _run_method(m, rig, frames, gt, occ0, p["occlusion_frames"])
             rows.append(row)
         rec["sweeps"][factor] = rows
+    bar.close()
     rec["chart"] = str(_chart(rec, f"{args.out}/vision_stability.png"))
     return rec
 

@@ -215,6 +215,16 @@ def run(args) -> dict:
     scenes = {name: load_scene(name) for name in args.scenes.split(",") if name}
     t_start = time.perf_counter()
     cm = _system_contact_model()
+    from vishap._core.results import progress
+
+    # one bar over every approach run: the scenes, then the policies and the sensitivity runs on the wall
+    bar = progress(total=len(scenes) * args.approaches + (len(POLICIES) + 5) * args.policy_approaches,
+                   desc="bench world", unit="approach", quiet=getattr(args, "quiet", False))
+
+    def counted(trajs):
+        for tr in trajs:
+            bar.update(1)
+            yield tr
 
     per_scene, allres = {}, []
     for si, (name, scene) in enumerate(scenes.items()):
@@ -222,7 +232,7 @@ def run(args) -> dict:
         res = [
             run_approach(scene, tr, World(scene, latency_s=vision.latency_s, contact_model=cm), vision=vision,
                          seed=args.seed + 1000 * si + i, in_place_m=in_place_m)
-            for i, tr in enumerate(trajs)
+            for i, tr in enumerate(counted(trajs))
         ]
         per_scene[name] = res
         allres += res
@@ -291,7 +301,7 @@ def run(args) -> dict:
             run_approach(pol_scene, tr, World(pol_scene, predictor=pred, handover=ho, contact_model=pcm,
                                               latency_s=vision.latency_s),
                          vision=vision, seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02)
-            for i, tr in enumerate(trajs)
+            for i, tr in enumerate(counted(trajs))
         ]
         tag = " (system)" if (pred, ho, pcm) == ("kalman", "hold", cm) else ""
         policies[f"{pred}+{ho}+{pcm}{tag}"] = {**_summary(rs, in_place_m), "errors_mm": [r.contact_error_m * 1e3 for r in rs],
@@ -308,19 +318,20 @@ def run(args) -> dict:
         rs = [
             run_approach(pol_scene, tr, World(pol_scene, latency_s=vm.latency_s, contact_model=cm), vision=vm,
                          seed=args.seed + 5000 + i, in_place_m=in_place_m, stop_after_contact_s=0.02)
-            for i, tr in enumerate(trajs)
+            for i, tr in enumerate(counted(trajs))
         ]
         sens[label] = _brief(rs, trajs, in_place_m)
     # perfect prediction: the true touch point given to the world from the start, or only 100 ms
     # before the touch — what the servo alone allows
     for label, ahead in (("perfect_prediction", None), ("perfect_prediction_100ms_before_touch", 0.1)):
         rs = []
-        for i, tr in enumerate(trajs):
+        for i, tr in enumerate(counted(trajs)):
             w = PerfectWorld(pol_scene, latency_s=vision.latency_s, contact_model=cm)
             w.truth(tr, ahead)
             rs.append(run_approach(pol_scene, tr, w, vision=vision, seed=args.seed + 5000 + i, in_place_m=in_place_m,
                                    stop_after_contact_s=0.02))
         sens[label] = _brief(rs, trajs, in_place_m)
+    bar.close()
     record["sensitivity"] = sens
     record["policies"] = {k: {kk: vv for kk, vv in v.items() if kk not in ("errors_mm", "speeds")} for k, v in policies.items()}
 
