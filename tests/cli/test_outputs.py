@@ -294,3 +294,24 @@ def test_bench_shows_progress_over_its_cases(tmp_path, capsys, monkeypatch):
     captured = capsys.readouterr()
     assert "/3 [" not in captured.err
     assert "tracking.json" in captured.out and "{" not in captured.out
+
+
+@pytest.mark.render
+def test_a_terminated_demo_leaves_nothing_behind(tmp_path, sig="SIGTERM"):
+    import signal
+    import time
+
+    root = str(Path(vishap.__file__).resolve().parents[1])
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    (tmp_path / "runs").mkdir()
+    proc = subprocess.Popen([sys.executable, "-m", "vishap", "demo", "wall", "--frames", "60", "--no-video",
+                             "--out", str(tmp_path / "runs" / "new" / "wall")], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not list((tmp_path / "runs").glob("new/.wall.tmp-*/*")) and time.monotonic() < deadline:
+        time.sleep(0.1)  # until the run has written something into its temporary folder
+    assert proc.poll() is None, proc.communicate()
+    proc.send_signal(getattr(signal, sig))
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err
+    assert "Traceback" not in err and list((tmp_path / "runs").iterdir()) == []
