@@ -211,7 +211,10 @@ def test_demo_wall_out_wall_shows_progress_and_a_short_summary(demo):
     assert "frame 1/12" not in err  # not the hand-made counter
     assert len(out.splitlines()) <= 8 and "{" not in out, out
     assert "summary.json" in out and str(cwd / "wall") in out
-    assert json.loads((cwd / "wall" / "summary.json").read_text())["frames"] == 12
+    summary = json.loads((cwd / "wall" / "summary.json").read_text())
+    assert summary["frames"] == 12
+    # 12 frames are all hand-free background frames: nothing to detect is no rate, not a rate of 0
+    assert summary["tip_visible_frames"] == 0 and summary["detection_rate"] is None
     assert sorted(p.name for p in cwd.iterdir()) == ["wall"]
 
 
