@@ -318,3 +318,16 @@ def test_a_terminated_demo_leaves_nothing_behind(tmp_path, sig="SIGTERM"):
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 143, err
     assert "Traceback" not in err and list((tmp_path / "runs").iterdir()) == []
+
+
+@pytest.mark.parametrize("argv", [["track", "{toy}"], ["skin", "fit", "{toy}"], ["rig", "new"],
+                                  ["calibrate", "stereo", "--left", "l*.png", "--right", "r*.png", "--board", "9x6",
+                                   "--square", "0.02"]])
+def test_a_file_out_onto_a_folder_or_under_a_file_is_one_error(argv, toy, tmp_path, capsys):
+    argv = [a.format(toy=toy) for a in argv]
+    f = tmp_path / "file"
+    f.write_text("x")
+    for bad, what in ((tmp_path, "is a folder"), (f / "out.yaml", "is a file")):
+        assert main([*argv, "--out", str(bad)]) == 2
+        assert what in _one_line(capsys.readouterr().err)
+    assert f.read_text() == "x" and sorted(p.name for p in tmp_path.iterdir()) == ["file"]

@@ -46,8 +46,6 @@ def to_jsonable(obj):
 
 
 def machine_info() -> dict:
-    import os
-
     return {"python": platform.python_version(), "cpus": os.cpu_count(), "machine": platform.machine()}
 
 
@@ -92,23 +90,14 @@ def summary_lines(record: dict, *, limit: int = 12) -> list[str]:
     return lines
 
 
-def show_result(record: dict, lines: Iterable[str] | None = None, *, as_json: bool = False,
-                save_to: str | os.PathLike | None = None) -> None:
+def show_result(record: dict, lines: Iterable[str] | None = None, *, as_json: bool = False) -> None:
     """End a command: with ``as_json`` the record as one line of JSON on stdout, else ``lines``
-    (default :func:`summary_lines`) and where the full record is. ``save_to``: also write the
-    record there (atomically) before anything is printed."""
-    text = record_json(record)
-    if save_to is not None:
-        from vishap._core.config import write_atomic
-
-        write_atomic(save_to, text + "\n")
+    (default :func:`summary_lines`; a command's own lines say where its files are)."""
     if as_json:
-        print(text)
+        print(record_json(record))
         return
     for line in (summary_lines(record) if lines is None else lines):
         print(line)
-    if save_to is not None:
-        print(f"  full record (JSON): {Path(save_to)}")
 
 
 def progress(iterable=None, *, total: int | None = None, desc: str, unit: str = "it", quiet: bool = False):

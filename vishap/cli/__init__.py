@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 import pkgutil
 import sys
 from collections.abc import Iterable
@@ -41,10 +40,9 @@ def add_quiet_flag(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar (there is none when stderr is not a terminal)")
 
 
-def report(args: argparse.Namespace, record: dict, lines: Iterable[str] | None = None, *,
-           save_to: str | os.PathLike | None = None) -> None:
+def report(args: argparse.Namespace, record: dict, lines: Iterable[str] | None = None) -> None:
     """End a command: :func:`~vishap._core.results.show_result` with ``--json`` taken from ``args``."""
-    show_result(record, lines, as_json=bool(getattr(args, "json", False)), save_to=save_to)
+    show_result(record, lines, as_json=bool(getattr(args, "json", False)))
 
 
 def quiet(args: argparse.Namespace) -> bool:
