@@ -139,6 +139,28 @@ def test_calibrate_stereo_names_the_image_of_another_size(tmp_path, capsys):
     assert not (tmp_path / "rig.yaml").exists()
 
 
+def test_calibrate_stereo_shows_progress_over_the_pairs(tmp_path, capsys, monkeypatch):
+    for i in range(3):
+        _blank(tmp_path / f"left_{i}.png", 160, 120)
+        _blank(tmp_path / f"right_{i}.png", 160, 120)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert main(["calibrate", "stereo", "--left", str(tmp_path / "left_*.png"), "--right", str(tmp_path / "right_*.png"),
+                 "--board", "9x6", "--square", "0.02", "--out", str(tmp_path / "rig.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(r"calibrate stereo: .* \d+/3 \[\d\d:\d\d<", err), err
+    assert "found in both images of only 0 of 3 pairs" in err
+
+
+@pytest.mark.render
+def test_calibrate_robot_shows_progress_over_the_poses(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert main(["calibrate", "robot", "--sim", "--poses", "4", "--size", "320x240",
+                 "--out", str(tmp_path / "c.yaml")]) == 0
+    captured = capsys.readouterr()
+    assert re.search(r"calibrate robot: .* \d+/\d+ \[\d\d:\d\d<", captured.err), captured.err
+    assert captured.out.startswith("camera-to-robot calibration from 4 of 4 poses") and "{" not in captured.out
+
+
 def test_calibrate_refuses_an_existing_out_before_calibrating(tmp_path, capsys):
     mine = tmp_path / "rig.yaml"
     mine.write_text("another calibration")
@@ -219,13 +241,16 @@ def test_demo_wall_out_wall_shows_progress_and_a_short_summary(demo):
 
 
 @pytest.mark.render
-def test_replay_help_names_only_what_replay_writes(demo, tmp_path, capsys):
+def test_replay_help_names_only_what_replay_writes(demo, tmp_path, capsys, monkeypatch):
     cwd = demo[0]
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     helptext = " ".join(build_parser()._subparsers._group_actions[0].choices["replay"].format_help().split())
     named = set(re.findall(r"[\w.]+\.(?:npz|json)", helptext)) - {"log.npz"}  # log.npz is the input
     assert named, helptext
     assert main(["replay", str(cwd / "wall"), "--out", str(tmp_path / "r"), "--json"]) == 0
-    rec = json.loads(capsys.readouterr().out)
+    captured = capsys.readouterr()
+    assert re.search(r"replay: .* \d+/12 \[\d\d:\d\d<", captured.err), captured.err
+    rec = json.loads(captured.out)
     assert rec["identical"], rec
     written = {p.name for p in (tmp_path / "r").iterdir()}
     assert named <= written, (named, written)
