@@ -77,17 +77,41 @@ def record_json(record: dict) -> str:
 
 
 def summary_lines(record: dict, *, limit: int = 12) -> list[str]:
-    """A generic summary: the record's top-level numbers, text and flags, one per line."""
-    lines = []
-    for k, v in record.items():
-        if isinstance(v, (float, np.floating)):
-            lines.append(f"  {k}: {float(v):.4g}")
-        elif isinstance(v, (int, str, bool, np.integer, np.bool_)) or v is None:
-            lines.append(f"  {k}: {v}")
-        if len(lines) >= limit:
-            lines.append("  …")
-            break
+    """A generic summary when a command has none of its own: the record's numbers, flags and short
+    text (top level first, then one level into its sub-records, as ``key.sub``), at most ``limit``
+    lines, then the charts and files it names."""
+    def scalar(v) -> bool:
+        return isinstance(v, (int, float, bool, np.integer, np.floating, np.bool_)) or v is None or (
+            isinstance(v, str) and len(v) <= 60 and not _is_file(v))
+
+    def show(v) -> str:
+        return f"{float(v):.4g}" if isinstance(v, (float, np.floating)) else str(v)
+
+    figures = [(k, v) for k, v in record.items() if scalar(v)]
+    figures += [(f"{k}.{kk}", vv) for k, v in record.items() if isinstance(v, dict) and k != "machine"
+                for kk, vv in v.items() if scalar(vv)]
+    lines = [f"  {k}: {show(v)}" for k, v in figures[:limit]]
+    if len(figures) > limit:
+        lines.append(f"  … {len(figures) - limit} more in the record")
+    files = sorted({Path(f).name for f in _files(record)})
+    if files:
+        lines.append(f"  files: {', '.join(files)}")
     return lines
+
+
+def _is_file(text: str) -> bool:
+    return Path(text).suffix.lower() in {".png", ".json", ".csv", ".md", ".html", ".npz", ".mp4", ".wav", ".yaml"}
+
+
+def _files(obj):
+    if isinstance(obj, dict):
+        for v in obj.values():
+            yield from _files(v)
+    elif isinstance(obj, (list, tuple)):
+        for v in obj:
+            yield from _files(v)
+    elif isinstance(obj, str) and _is_file(obj):
+        yield obj
 
 
 def show_result(record: dict, lines: Iterable[str] | None = None, *, as_json: bool = False) -> None:
