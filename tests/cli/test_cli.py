@@ -173,10 +173,10 @@ def test_failed_synth_keeps_what_another_run_wrote_in_its_new_parent(tmp_path, m
 @pytest.mark.render
 def test_demo_writes_its_folder_whole_and_refuses_a_non_empty_one(tmp_path, capsys):
     out = tmp_path / "wall"
-    assert main(["demo", "wall", "--frames", "12", "--no-video", "--no-frames", "--out", str(out)]) == 0
+    assert main(["demo", "wall", "--frames", "12", "--no-video", "--no-frames", "--out", str(out), "--json"]) == 0
     assert (out / "summary.json").is_file() and (out / "log.npz").is_file()
+    assert json.loads(capsys.readouterr().out) == json.loads((out / "summary.json").read_text())  # --json: the record
     before = (out / "summary.json").read_bytes()
-    capsys.readouterr()
     assert main(["demo", "wall", "--frames", "12", "--no-video", "--no-frames", "--out", str(out)]) == 2
     assert "--overwrite" in capsys.readouterr().err
     assert (out / "summary.json").read_bytes() == before  # another run's output is never touched
