@@ -278,10 +278,15 @@ def run_calibration(device, source, rig, *, n_poses: int, seed: int = 0, prompt=
     if out is not None:
         camera_robot.save(out, fit.T, {k: v for k, v in record.items() if k != "pose_set_robot"}, rig=rig)
         record["out"] = str(out)
-    if poses_out is not None:
-        Path(poses_out).parent.mkdir(parents=True, exist_ok=True)
+    if poses_out is not None:  # atomically, as the calibration file: never a half-written file
+        import io
+
+        from vishap._core.config import write_atomic
+
         extra = {} if truth is None else {"T_true": truth.T_robot_cam}
-        np.savez(poses_out, **{k: np.asarray(v) for k, v in res["observations"].items()}, T_robot_cam=fit.T, **extra)
+        buf = io.BytesIO()
+        np.savez(buf, **{k: np.asarray(v) for k, v in res["observations"].items()}, T_robot_cam=fit.T, **extra)
+        write_atomic(poses_out, buf.getvalue())
         record["poses_out"] = str(poses_out)
     return record
 
