@@ -97,7 +97,7 @@ def _demo(args: argparse.Namespace, out) -> dict:
         if args.contact_model is not None:
             fields["contact_model"] = args.contact_model
         return run_live(args.scene, out=out, cameras=args.cameras, calib=args.calib, rig=args.rig,
-                        device=args.device, duration_s=args.duration, **fields)
+                        device=args.device, duration_s=args.duration, progress=show_progress(args), **fields)
     from vishap.apps import run_demo
     from vishap.apps.config import DemoConfig
     from vishap._core.config import validate
