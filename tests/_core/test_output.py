@@ -138,3 +138,24 @@ def test_check_output_file(tmp_path):
         check_output_file(tmp_path)
     with pytest.raises(ConfigError, match="is a file"):
         check_output_file(f / "sub.yaml")
+
+
+def test_check_output_folder_refuses_before_anything_is_made(tmp_path, monkeypatch):
+    from vishap._core.output import check_output_folder
+
+    full = tmp_path / "full"
+    full.mkdir()
+    (full / "x").write_text("1")
+    with pytest.raises(ConfigError, match="not empty"):
+        check_output_folder(full)
+    assert check_output_folder(tmp_path / "a" / "b") == tmp_path / "a" / "b"
+    assert _names(tmp_path) == ["full"]  # nothing created
+    # a folder the user may not write into (simulated: the tests may run as root, who may write anywhere)
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if str(p) == str(tmp_path) else real(p, mode))
+    with pytest.raises(ConfigError, match="not writable"):
+        check_output_folder(tmp_path / "new")
+    with pytest.raises(ConfigError, match="not writable"):
+        with output_dir(tmp_path / "new"):
+            pass
+    assert _names(tmp_path) == ["full"]

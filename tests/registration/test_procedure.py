@@ -144,7 +144,7 @@ def test_calibrate_robot_with_a_placed_device_through_the_cli(standin, tmp_path,
     out = tmp_path / "camera_robot.yaml"
     try:
         code = main(["calibrate", "robot", "--device", "standin_arm:PlacedArm", "--cameras", "cam:0,1",
-                     "--rig", str(rig_path), "--poses", "6", "--out", str(out), "--frames-per-pose", "1"])
+                     "--rig", str(rig_path), "--poses", "6", "--out", str(out), "--frames-per-pose", "1", "--json"])
     finally:
         sim.close()
     assert code == 0

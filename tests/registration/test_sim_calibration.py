@@ -14,7 +14,7 @@ def test_calibrate_robot_sim_cli(tmp_path, capsys):
     out = tmp_path / "camera_robot.yaml"
     poses = tmp_path / "poses.npz"
     code = main(["calibrate", "robot", "--sim", "--poses", "8", "--seed", "1", "--size", "480x360",
-                 "--out", str(out), "--poses-out", str(poses)])
+                 "--out", str(out), "--poses-out", str(poses), "--json"])
     assert code == 0
     rec = json.loads(capsys.readouterr().out)
     for key in ("poses_used", "per_axis_error_mm", "rms_mm", "rotation_error_deg", "translation_error_mm"):

@@ -74,7 +74,7 @@ def test_opencv_sample_pairs_reach_the_sample_rms(opencv_stereo_dir, tmp_path, c
     """OpenCV's own stereo pairs: the CLI must reach (at most) the RMS of OpenCV's stereo_calib sample."""
     out = tmp_path / "rig.yaml"
     code = main(["calibrate", "stereo", "--left", str(opencv_stereo_dir / "left*.jpg"), "--right",
-                 str(opencv_stereo_dir / "right*.jpg"), "--board", "9x6", "--square", "0.025", "--out", str(out)])
+                 str(opencv_stereo_dir / "right*.jpg"), "--board", "9x6", "--square", "0.025", "--out", str(out), "--json"])
     assert code == 0
     rec = json.loads(capsys.readouterr().out)
     assert {"pairs_used", "rms_px", "baseline_m", "fx_px"} <= set(rec)

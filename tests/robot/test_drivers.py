@@ -159,7 +159,7 @@ def test_vishap_devices_lists_sim_with_its_limits(capsys, outside):
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: labdrivers\nVersion: 0.1\n")
     (dist / "entry_points.txt").write_text(f"[{ENTRY_POINT_GROUP}]\nbroken = no_such_driver_pkg:Arm\n")
-    assert main(["devices"]) == 0
+    assert main(["devices", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
     assert rows["sim"]["limits"]["peak_force_n"] == 8.5 and rows["sim"]["moves_itself"] is True
     assert "no_such_driver_pkg" in rows["broken"]["unavailable"]

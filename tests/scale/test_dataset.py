@@ -45,7 +45,7 @@ def test_build_a_mixed_spec_equals_synth_runs_and_resumes(tmp_path, capsys):
     assert _digest(out / "wall-mixed" / "seed-000001") == _digest(single)
 
     capsys.readouterr()
-    assert main(["dataset", "build", str(spec), "--out", str(out), "--workers", "1", "--quiet"]) == 0
+    assert main(["dataset", "build", str(spec), "--out", str(out), "--workers", "1", "--quiet", "--json"]) == 0
     again = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert (again["built"], again["skipped"]) == (0, 4)
 

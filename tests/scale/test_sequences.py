@@ -39,7 +39,7 @@ def _manifest(out: Path) -> dict:
 
 def test_two_ray_workers_write_the_bytes_of_single_runs(tmp_path, capsys):
     out = tmp_path / "set"
-    assert main(["synth", *OPTS, "--seeds", "0:3", "--workers", "2", "--out", str(out)]) == 0
+    assert main(["synth", *OPTS, "--seeds", "0:3", "--workers", "2", "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["built"] == 3 and summary["engine"]["mode"] == "local-ray" and summary["engine"]["workers"] == 2
     m = _manifest(out)

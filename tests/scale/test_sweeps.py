@@ -106,9 +106,10 @@ def test_demo_seed_sweep_on_two_workers_equals_serial(ray_two_cpus, tmp_path):
     equal; only the measured compute times (ms, µs, wall seconds) differ between runs."""
     from vishap.bench.servo_quality import demo_files
 
-    calib = str(Path(__file__).resolve().parents[2] / "calib" / "camera_robot.yaml")  # no calibration run: quicker
+    # the committed calibration (its rig is 640x480): no calibration run, quicker
+    calib = str(Path(__file__).resolve().parents[2] / "calib" / "camera_robot.yaml")
     cases = [{"scene": "wall", "seed": s, "substeps": 10, "encoder": "encoder", "video": False, "save_frames": False,
-              "frames": 12, "width": 320, "height": 240, "calib": calib} for s in (0, 1)]
+              "frames": 12, "width": 640, "height": 480, "calib": calib} for s in (0, 1)]
     serial = map_cases(demo_files, cases, workers=1)
     parallel = map_cases(demo_files, cases, workers=2)
     timed = ("_ms", "_us", "wall_s", "realtime_factor", "servo_overruns")

@@ -139,7 +139,7 @@ def test_feedforward_prearms_predicted_slip():
 def test_render_cli_writes_npz_and_wav(tmp_path, capsys):
     d = to_arrays(press(0.2))
     np.savez(tmp_path / "c.npz", **d)
-    assert main(["tactile", "render", "--input", str(tmp_path / "c.npz"), "--out", str(tmp_path / "o"), "--no-plots"]) == 0
+    assert main(["tactile", "render", "--input", str(tmp_path / "c.npz"), "--out", str(tmp_path / "o"), "--no-plots", "--json"]) == 0
     rec = json.loads(capsys.readouterr().out)
     assert rec["samples"] == 2000 and rec["channels"]["pins"] == 24
     from scipy.io import wavfile
@@ -154,7 +154,7 @@ def test_render_cli_writes_npz_and_wav(tmp_path, capsys):
 
 
 def test_examples_cli(capsys):
-    assert main(["tactile", "examples"]) == 0
+    assert main(["tactile", "examples", "--json"]) == 0
     rec = json.loads(capsys.readouterr().out)
     assert rec["all_correct"] and rec["slip"]["state"] == "slip"
     assert math.isclose(rec["distributed"]["regions"][1]["beta_hz"], 120)

@@ -46,7 +46,7 @@ def test_cli_track_eval_and_skin(toy_sequences, tmp_path, capsys):
     row = rec["tracks"][-1]
     assert set(row) >= {"t", "tip_uv_left", "tip_uv_right", "tip_cam", "confidence", "timing_ms"}
     capsys.readouterr()
-    assert main(["eval", "vision", str(toy_sequences / "s1"), "--skin", str(tmp_path / "skin.yaml")]) == 0
+    assert main(["eval", "vision", str(toy_sequences / "s1"), "--skin", str(tmp_path / "skin.yaml"), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     for k in ("seg_correct", "seg_false_positive", "seg_false_negative", "tip2d_rms_px", "tip3d_rms_mm",
               "detection_rate", "ms_per_pair"):

@@ -32,7 +32,7 @@ from pathlib import Path
 
 from vishap._core.errors import ConfigError
 
-__all__ = ["output_dir", "OutputFolder", "check_output_file", "sigterm_as_exit"]
+__all__ = ["output_dir", "OutputFolder", "check_output_folder", "check_output_file", "sigterm_as_exit"]
 
 
 @dataclass
@@ -61,11 +61,21 @@ def _missing_parents(p: Path) -> list[Path]:
     return missing[::-1]
 
 
+def check_output_folder(path: str | os.PathLike, *, overwrite: bool = False) -> Path:
+    """The checks :func:`output_dir` makes, without creating anything: for a command that works a
+    long time before it writes, so that a bad ``--out`` is refused before the work starts."""
+    out = Path(path).absolute()
+    _check_target(out, overwrite)
+    return out
+
+
 def _check_target(out: Path, overwrite: bool) -> None:
     for q in out.parents:
         if q.exists() and not q.is_dir():
             raise ConfigError(f"cannot write the output folder: {q} is a file", file=out)
         if q.exists():
+            if not os.access(q, os.W_OK | os.X_OK):
+                raise ConfigError(f"cannot write the output folder: {q} is not writable", file=out)
             break
     if out.exists() or out.is_symlink():
         if not out.is_dir():

@@ -15,7 +15,6 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from vishap._core.errors import CalibrationError
 from vishap._core.pose import invert
 from vishap.apps.config import DemoConfig
 from vishap.world.finger import TIP_RADIUS_M
@@ -36,9 +35,9 @@ def make_rig(cfg: DemoConfig):
 def calibrate(cfg: DemoConfig, rig, out: Path, *, poses: int = 12) -> tuple[np.ndarray | None, dict]:
     """The system's camera → robot transform: from ``cfg.calib``, or calibrated in simulation.
 
-    A missing or unreadable calibration file is not fatal in a batch run: the run goes on without a
-    calibration (the guard retreats the device and the summary counts it) and a warning names the
-    file. Without ``cfg.calib`` the camera-robot procedure runs on the simulated device
+    A calibration file that is missing or unreadable stops the run before it starts, naming the
+    file: a run without it would only keep the device retreating (a lost calibration during a run
+    is the ``calibration_missing`` fault). Without ``cfg.calib`` the camera-robot procedure runs on the simulated device
     (:func:`vishap.registration.sim.calibrate_sim`: the arm visits ``poses`` targets spanning the
     reachable box, its green marker is rendered, detected and triangulated, and the absolute
     orientation is solved, VisHap Eq. 3); the result is saved as ``OUT/camera_robot.yaml``.
@@ -46,11 +45,7 @@ def calibrate(cfg: DemoConfig, rig, out: Path, *, poses: int = 12) -> tuple[np.n
     from vishap.registration import camera_robot as cr
 
     if cfg.calib is not None:
-        try:
-            return cr.load(cfg.calib, rig=rig), {"source": str(cfg.calib)}
-        except CalibrationError as exc:
-            print(f"vishap demo: warning: calibration unavailable, the device will retreat: {exc}", file=sys.stderr)
-            return None, {"source": str(cfg.calib), "error": str(exc)}
+        return cr.load(cfg.calib, rig=rig), {"source": str(cfg.calib)}
     from vishap.registration.sim import calibrate_sim
 
     rig_path = rig.save(out / "rig.yaml")

@@ -94,7 +94,7 @@ def check_live(*, cameras: str, rig: str | None, calib: str | None, device: str 
 
 
 def run_live(scene: str, *, out, cameras: str, calib: str | None, rig: str | None, device: str | None,
-             duration_s: float, realtime: bool = True, **fields) -> dict:
+             duration_s: float, realtime: bool = True, progress: bool = False, **fields) -> dict:
     """``vishap demo SCENE --live``: check, calibrate if needed, run :func:`run_live_loop`."""
     import numpy as np
 
@@ -121,4 +121,4 @@ def run_live(scene: str, *, out, cameras: str, calib: str | None, rig: str | Non
             gt = {k: z[k] for k in z.files}
     source = open_source(spec)
     return run_live_loop(cfg, out=out, source=source, rig=stereo, T_robot_cam=T, calib_report=report, device=device,
-                         gt=gt, duration_s=duration_s, realtime=realtime, source_name=spec)
+                         gt=gt, duration_s=duration_s, realtime=realtime, source_name=spec, progress=progress)

@@ -221,7 +221,7 @@ def _dropped_row(t, k, mount, state) -> dict:
 
 def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_report: dict | None = None,
                   device: str = "sim", gt: dict | None = None, duration_s: float = 30.0, realtime: bool = True,
-                  pace: bool | None = None, source_name: str | None = None) -> dict:
+                  pace: bool | None = None, source_name: str | None = None, progress: bool = False) -> dict:
     """Run until ``duration_s`` or the source ends; write the demo's outputs into ``out``.
 
     ``gt`` (a recording's ground truth) drives the simulated finger when ``device == "sim"`` and gives
@@ -267,13 +267,19 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
     # than a frame period here; OpenCV releases the GIL while it encodes)
     writer = ThreadPoolExecutor(max_workers=1) if cfg.save_frames else None
     ar, view = _live_view(rig, T, scene, vision)
+    from vishap._core.results import progress as bar
+
     servo.start()
     wall0 = time.monotonic()
+    shown = bar(total=round(duration_s), desc=f"demo {cfg.scene} (live)", unit="s", quiet=not progress)
     try:
         anchor = [None, None]
         for k, (frame, late) in enumerate(_frames(source, pace, cfg.camera_hz, anchor)):
-            if time.monotonic() - wall0 > duration_s:
+            elapsed = time.monotonic() - wall0
+            if elapsed > duration_s:
                 break
+            if int(elapsed) > shown.n:  # whole seconds: the bar is redrawn at most once a second
+                shown.update(int(elapsed) - shown.n)
             state, _ = servo.read_state()
             t = servo.now()  # the servo's clock at the grab, right also while the servo process is starved
             if not np.isfinite(offset):
@@ -314,6 +320,7 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
                           render_ms=np.nan, device_q=np.full(3, np.nan), device_ee=p_dev - mount,
                           **_stage_ms(est.timings))
     finally:
+        shown.close()
         view.close()
         report = servo.stop()
         close = getattr(source, "close", None)

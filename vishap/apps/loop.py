@@ -21,7 +21,6 @@ the system knows about the finger comes through the rendered pixels and the visi
 """
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
@@ -47,6 +46,7 @@ class Demo:
         self.out = Path(out)
         self.out.mkdir(parents=True, exist_ok=True)
         self.progress = progress
+        self.bar = None  # the progress bar, while run() runs
         self.log = SignalLog()
         self.st = st = assemble.build(cfg, self.out, self.log)
         self.log.meta.update(assemble.meta(
@@ -147,8 +147,8 @@ class Demo:
             c4 = time.perf_counter()
             self.ar_video.write(self.ar.compose(pair.left, None, dev.q, t, contact=self._ar_contact(dev)))
             self.wall["ar"] = self.wall.get("ar", 0.0) + time.perf_counter() - c4
-        if self.progress and (k % 10 == 0 or k == self.cfg.frames - 1):
-            print(f"\rdemo {self.cfg.scene}: frame {k + 1}/{self.cfg.frames}", end="", file=sys.stderr, flush=True)
+        if self.bar is not None:
+            self.bar.update(1)
 
     def _ar_contact(self, dev):
         """Where the device is pressed under its subject's surface, for the AR view (None: no press)."""
@@ -186,13 +186,15 @@ class Demo:
 
     # ------------------------------------------------------------------ run
     def run(self) -> None:
+        from vishap._core.results import progress
+
         self.t_start = time.perf_counter()
         n_ticks = int(round(self.cfg.frames / self.cfg.camera_hz * self.cfg.servo_hz))
-        for _ in range(n_ticks):
-            self.sched.step()
+        with progress(total=self.cfg.frames, desc=f"demo {self.cfg.scene}", unit="frame",
+                      quiet=not self.progress) as self.bar:
+            for _ in range(n_ticks):
+                self.sched.step()
         self.wall_total = time.perf_counter() - self.t_start
-        if self.progress:
-            print(file=sys.stderr)
 
     def finish(self) -> dict:
         from vishap.apps.summary import write_outputs

@@ -33,7 +33,7 @@ from vishap._core.errors import ConfigError
 from vishap.apps.config import DemoConfig
 from vishap.apps.log import SignalLog, load_log, read_frame_png
 
-__all__ = ["replay", "compare"]
+__all__ = ["replay", "compare", "summary_lines"]
 
 
 def _rig_from_string(text: str):
@@ -60,7 +60,21 @@ def compare(a: dict[str, np.ndarray], b: dict[str, np.ndarray], keys, atol: floa
     return out
 
 
-def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
+def summary_lines(report: dict, atol: float = 0.0) -> list[str]:
+    """The terminal's few lines: the verdict and, when not identical, which outputs differ."""
+    worst = report.get("max_abs_difference")
+    lines = [f"replay of {report['log']} ({report['scene']}): "
+             + ("identical" if report["identical"] else "DIFFERENT")
+             + ("" if worst is None else f", largest difference {worst:.3g}")
+             + ("" if report.get("same_code") else " (the log was made by other code)")]
+    if not report["identical"]:
+        differ = [f"{part}.{k}" for part in ("vision", "world", "tactile")
+                  for k, v in report.get(part, {}).items() if v is None or v > atol]
+        lines.append(f"  differing: {', '.join(differ)}")
+    return lines
+
+
+def replay(log_path, *, out=None, atol: float = 0.0, progress: bool = False) -> dict:
     log_path = Path(log_path)
     folder = log_path if log_path.is_dir() else log_path.parent
     meta, ch = load_log(log_path)
@@ -95,7 +109,9 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
     pipe = VisionPipeline(rig)
     v = ch["vision"]
     by_t = {}
-    for i in range(len(v["t"])):
+    from vishap._core.results import progress as bar
+
+    for i in bar(range(len(v["t"])), desc="replay", unit="frame", quiet=not progress):
         t, k = float(v["t"][i]), int(v["index"][i])
         if bool(v["dropped"][i]):
             res = {"found": False, "p_cam": np.full(3, np.nan), "uv_left": np.full(2, np.nan),
@@ -172,7 +188,7 @@ def replay(log_path, *, out=None, atol: float = 0.0) -> dict:
     worst = [x for part in ("vision", "world", "tactile") for x in report.get(part, {}).values()]
     report["max_abs_difference"] = None if any(x is None for x in worst) else (max(worst) if worst else 0.0)
     report["identical"] = all(x is not None and x <= atol for x in worst)
-    if out is not None:
+    if out is not None:  # the command's output folder (a temporary one, renamed when complete)
         o = Path(out)
         o.mkdir(parents=True, exist_ok=True)
         new.save(o / "replay_log.npz")

@@ -16,7 +16,7 @@ import numpy as np
 from vishap.apps.metrics import approaches, force_depth_r2, tip3d_errors_mm
 from vishap._core.results import to_jsonable
 
-__all__ = ["summarize", "write_plots", "write_outputs"]
+__all__ = ["summarize", "write_plots", "write_outputs", "summary_lines"]
 
 
 def _nanmedian(x) -> float:
@@ -41,7 +41,8 @@ def summarize(meta: dict, ch: dict[str, dict[str, np.ndarray]], *, wall: dict | 
             tip3d_rms_mm=float(np.sqrt(np.mean(err ** 2))) if err.size else None,
             tip3d_median_mm=float(np.median(err)) if err.size else None,
             tip_visible_frames=int(vis_ok.sum()),
-            detection_rate=float((vis_ok & found).sum() / max(1, vis_ok.sum())),
+            # None, not 0, when no frame shows the fingertip: there was nothing to detect
+            detection_rate=float((vis_ok & found).sum() / vis_ok.sum()) if vis_ok.any() else None,
             false_detections=int((found & ~vis["tip_visible"].astype(bool)).sum()),
             vision_ms_per_pair=_nanmedian(vis["vision_ms"]),
             render_ms_per_pair=_nanmedian(vis["render_ms"]),
@@ -153,6 +154,34 @@ def write_outputs(out: Path, log, *, wall: dict | None = None, stats: dict | Non
     summary = to_jsonable(summary)
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
+
+
+def summary_lines(summary: dict, out) -> list[str]:
+    """The few lines a demo shows on the terminal: the figures that matter and where the files are
+    (every figure is in ``summary.json``)."""
+    def num(key, fmt, unit=""):
+        v = summary.get(key)
+        return "n/a" if v is None else f"{v:{fmt}}{unit}"
+
+    mode = summary.get("mode", "batch")
+    lines = [f"demo {summary['scene']} ({mode}, seed {summary['seed']}): {summary['frames']} frames, "
+             f"{num('duration_s', '.2f', ' s')} simulated, realtime factor {num('realtime_factor', '.2f')}"]
+    lines.append(f"  vision: tip 3-D RMS {num('tip3d_rms_mm', '.2f', ' mm')}, detection rate "
+                 f"{num('detection_rate', '.0%')}, {num('vision_ms_per_pair', '.1f', ' ms')} per pair")
+    aps = summary.get("approaches") or []
+    lines.append(f"  device: {len(aps)} approach(es), lead time {num('contact_lead_time_ms', '+.0f', ' ms')}, "
+                 f"contact position error {num('contact_position_error_mm', '.2f', ' mm')}, "
+                 f"max force {num('max_force_n', '.2f', ' N')}")
+    if summary.get("force_depth_r2") is not None:
+        lines.append(f"  force vs depth R² {summary['force_depth_r2']:.4f}")
+    cal = summary.get("calibration") or {}
+    if cal.get("error"):
+        lines.append(f"  calibration: {cal['error']}")
+    retreat = summary.get("guard_retreat_ticks") or 0
+    if retreat:
+        lines.append(f"  guard: device retreated on {retreat} of {summary.get('servo_ticks', '?')} servo ticks")
+    lines.append(f"  files in {out}: summary.json (every figure), log.npz, {', '.join(summary.get('plots', []))}")
+    return lines
 
 
 def reaction_misses(meta: dict, ch: dict) -> int:

@@ -161,9 +161,12 @@ def run(args) -> dict:
         names = wanted
     skip = {n.strip() for n in args.skip.split(",") if n.strip()}
     names = [n for n in names if n not in skip]
+    from vishap._core.results import progress
+
     results = []
-    for name in names:
-        print(f"bench all: {name} ...", file=sys.stderr, flush=True)
+    bar = progress(names, desc="bench all", unit="bench", quiet=getattr(args, "quiet", False))
+    for name in bar:
+        bar.write(f"bench all: {name} ...", file=sys.stderr)  # a line per benchmark also in a log
         results.append(_run_one(name, mods[name], out, quick=not args.full, timeout=args.timeout))
     md_path, html_path = write_index(out, results)
     return {

@@ -273,8 +273,10 @@ def run(args) -> dict:
     out = Path(args.out)
     w, h = (int(v) for v in str(args.resolution).lower().split("x"))
     names = [s.strip() for s in args.scenes.split(",") if s.strip()]
+    from vishap._core.results import progress
+
     scenes = {n: _scene(n, (w, h), args.frames, max(1, args.every), args.calib_poses, args.sweep_poses, args.seed, out)
-              for n in names}
+              for n in progress(names, desc="bench ar", unit="scene", quiet=getattr(args, "quiet", False))}
     _chart(scenes, out)
     this = [s["methods"]["learned background"] for s in scenes.values()]
     occ = [s["hand_occlusion_accuracy"]["this (vision skin mask)"] for s in scenes.values()]

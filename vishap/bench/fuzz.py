@@ -589,8 +589,8 @@ def run(args: argparse.Namespace) -> dict:
     if args.replay is not None:
         with tempfile.TemporaryDirectory(prefix="vishap-fuzz-") as d:
             return run_case(args.seed, args.replay, Path(d))
-    return fuzz(args.cases, args.seed, args.jobs, crash_dir=out / "crashes", progress=True,
-                case_timeout_s=args.case_timeout)
+    return fuzz(args.cases, args.seed, args.jobs, crash_dir=out / "crashes",
+                progress=not getattr(args, "quiet", False), case_timeout_s=args.case_timeout)
 
 
 def summary_lines(rec: dict) -> list[str]:

@@ -197,8 +197,11 @@ def run(args: argparse.Namespace) -> dict:
     photo_dets = {"learned": make("image"), "hybrid": make("hybrid")}
     if peers:
         photo_dets["mediapipe_image"] = peers["mediapipe_image"]
+    from vishap._core.results import progress
+
+    quiet = getattr(args, "quiet", False)
     photo = {k: [] for k in photo_dets}
-    for i, (path, gt) in enumerate(items):
+    for i, (path, gt) in enumerate(progress(items, desc="bench learned: photos", unit="photo", quiet=quiet)):
         img = _read(path)
         for name, det in photo_dets.items():
             det.reset()
@@ -214,7 +217,7 @@ def run(args: argparse.Namespace) -> dict:
         if n != HybridConfig().recheck_every:
             video_dets[f"hybrid_recheck_{n}"] = make("hybrid", recheck_every=n)
     video = {k: [] for k in video_dets}
-    for i, (path, gt) in enumerate(items):
+    for i, (path, gt) in enumerate(progress(items, desc="bench learned: video", unit="frame", quiet=quiet)):
         img = _read(path)
         for name, det in video_dets.items():
             video[name].append(_step(det, img, i * dt, gt))
@@ -228,7 +231,7 @@ def run(args: argparse.Namespace) -> dict:
     if peers:
         mv_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
     moving = {k: [] for k in mv_dets}
-    for j, (path, gt) in enumerate(picks):
+    for j, (path, gt) in enumerate(progress(picks, desc="bench learned: moving photos", unit="photo", quiet=quiet)):
         for det in mv_dets.values():
             det.reset()
         for k, (frame, gt_k) in enumerate(_moving_frames(_read(path), gt, args.moving_frames, seed=j)):

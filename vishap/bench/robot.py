@@ -122,7 +122,9 @@ def run(args) -> dict:
     bare_run = _bare_loop()
     pd_run = _numpy_pd_loop(n)
     res = {"servo_cycle": [], "bare_mujoco_step": [], "numpy_pd_step": []}
-    for r in range(rounds):
+    from vishap._core.results import progress
+
+    for r in progress(range(rounds), desc="bench robot", unit="round", quiet=getattr(args, "quiet", False)):
         for name, fn in (("bare_mujoco_step", bare_run), ("numpy_pd_step", pd_run), ("servo_cycle", servo_run)):
             d = np.empty(per)
             fn(d[: min(300, per)], r * per)  # warm-up, discarded

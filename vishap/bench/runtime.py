@@ -140,7 +140,10 @@ def run(args: argparse.Namespace) -> dict:
     if unknown:
         raise SystemExit(f"bench runtime: unknown config(s) {unknown}; known: {sorted(known)}")
     frames, rig, T_robot_cam = _frames(args.frames, args.seed)
-    records = [_run_config(known[w], args.seconds, frames, rig, T_robot_cam, args.camera_hz) for w in wanted]
+    from vishap._core.results import progress
+
+    records = [_run_config(known[w], args.seconds, frames, rig, T_robot_cam, args.camera_hz)
+               for w in progress(wanted, desc="bench runtime", unit="config", quiet=getattr(args, "quiet", False))]
     out = Path(args.out)
     fig, (ax1, ax2) = new_figure(1, 2, figsize=(11, 4))
     for r in records:

@@ -155,7 +155,9 @@ def run(args) -> dict:
             _build(jobs[:args.workers], tmp / "warm-ray", workers=args.workers)
             _build(jobs[:1], tmp / "warm-serial", workers=1)
             serial, parallel = [], []
-            for r in range(args.rounds):
+            from vishap._core.results import progress
+
+            for r in progress(range(args.rounds), desc="bench scale", unit="round", quiet=getattr(args, "quiet", False)):
                 order = ("serial", "ray") if r % 2 == 0 else ("ray", "serial")
                 for mode in order:
                     if mode == "serial":

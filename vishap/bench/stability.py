@@ -126,7 +126,10 @@ def _run_case(case: tuple) -> dict:
     return r
 
 
-def run_sweeps(substeps: int, quick: bool = False, *, workers: int = 1, address: str | None = None) -> list[dict]:
+def run_sweeps(substeps: int, quick: bool = False, *, workers: int = 1, address: str | None = None,
+               progress: bool = False) -> list[dict]:
+    """Every sweep's runs, listed first and then run as one set of cases (Ray tasks with ``workers``
+    or ``address``); ``progress``: one bar over them, on stderr, on a terminal."""
     g = _grids(quick)
     cases: list[tuple] = []
 
@@ -158,7 +161,7 @@ def run_sweeps(substeps: int, quick: bool = False, *, workers: int = 1, address:
     from vishap.robot.stability import passivity_margin
     from vishap.scale import map_cases
 
-    recs = map_cases(_run_case, cases, workers=workers, address=address, desc="stability")
+    recs = map_cases(_run_case, cases, workers=workers, address=address, progress=progress, desc="bench stability")
     b_tip, T = _tip_b_T()
     for r in recs:
         if r["sweep"] == "contact":

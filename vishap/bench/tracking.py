@@ -68,17 +68,19 @@ def _chart_steps(runs, out: Path, gains) -> Path:
     return save_figure(fig, out / "tracking_steps.png")
 
 
-def _policies(gains, rates, noises, latency_s, duration_s) -> tuple[list, dict]:
+def _policies(gains, rates, noises, latency_s, duration_s, quiet: bool = False) -> tuple[list, dict]:
+    import itertools
+
+    from vishap._core.results import progress
     from vishap.robot.tracking import moving_target
 
     recs, traces = [], {}
-    for noise in noises:
-        for rate in rates:
-            for pol in POLICIES:
-                r = moving_target(gains, pol, rate, noise_m=noise, latency_s=latency_s, duration_s=duration_s, seed=7)
-                if noise == 0 and rate == rates[0]:
-                    traces[pol] = r
-                recs.append({k: v for k, v in r.items() if k not in ("t", "p", "truth")})
+    cases = list(itertools.product(noises, rates, POLICIES))
+    for noise, rate, pol in progress(cases, desc="bench tracking: policies", unit="run", quiet=quiet):
+        r = moving_target(gains, pol, rate, noise_m=noise, latency_s=latency_s, duration_s=duration_s, seed=7)
+        if noise == 0 and rate == rates[0]:
+            traces[pol] = r
+        recs.append({k: v for k, v in r.items() if k not in ("t", "p", "truth")})
     return recs, traces
 
 
@@ -101,7 +103,7 @@ def _chart_policies(recs, traces, out: Path, rates, noises) -> Path:
     ax = axes[2]
     any_tr = next(iter(traces.values()))
     t = any_tr["t"]
-    k = (t >= 1.0) & (t <= 2.0)
+    k = (t >= t[-1] / 3) & (t <= 2 * t[-1] / 3)  # the middle third: past the start, whatever the run's length
     ax.plot(t[k], any_tr["truth"][k, 0] * 1e3, "k--", lw=1.0, label="finger (truth)")
     for i, pol in enumerate(POLICIES):
         ax.plot(t[k], traces[pol]["p"][k, 0] * 1e3, color=f"C{i}", lw=1.0, label=pol)
@@ -122,7 +124,7 @@ def run(args) -> dict:
     rates = [30.0] if args.quick else [20.0, 30.0, 60.0]
     noises = [0.0] if args.quick else [0.0, 0.0005]
     dur = 1.0 if args.quick else float(args.duration)
-    recs, traces = _policies(gains, rates, noises, args.latency_ms / 1e3, dur)
+    recs, traces = _policies(gains, rates, noises, args.latency_ms / 1e3, dur, quiet=getattr(args, "quiet", False))
     png2 = _chart_policies(recs, traces, out, rates, noises)
     best = {}
     for noise in noises:

@@ -306,19 +306,27 @@ def run(args: argparse.Namespace) -> dict:
     rng = np.random.default_rng(0)
     record = {"machine": machine_info(), "cv2_threads": cv2.getNumThreads(), "sequences": {}}
     with tempfile.TemporaryDirectory() as tmp:
+        from vishap._core.results import progress
+
         folders = [Path(d) for d in args.data] if args.data else _default_data(Path(tmp))
+        bar = progress(total=4 * len(folders), desc="bench vision", unit="stage", quiet=getattr(args, "quiet", False))
         for folder in folders:
             seq, frames = _load(folder, args.frames)
             learn = int(seq.gt.get("hand_free_frames", 10))
             if len(frames) < learn + 5:
                 record["sequences"][folder.name] = {"skipped": f"{len(frames)} frames: fewer than {learn} background + 5"}
+                bar.update(4)
                 continue
             rec = {"frames": len(frames), "skin_model": skin.source}
-            rec["pipeline"] = _bench_pipeline(folder, args.frames, skin)
-            rec["segmentation"] = _bench_segmentation(frames, learn, skin, args.quick)
-            rec["stereo"] = _bench_stereo(seq, frames, skin, learn)
-            rec["kalman"] = _bench_kalman(seq.gt, rng)
+            for stage, measure in (("pipeline", lambda: _bench_pipeline(folder, args.frames, skin)),
+                                   ("segmentation", lambda: _bench_segmentation(frames, learn, skin, args.quick)),
+                                   ("stereo", lambda: _bench_stereo(seq, frames, skin, learn)),
+                                   ("kalman", lambda: _bench_kalman(seq.gt, rng))):
+                bar.set_postfix_str(f"{folder.name}: {stage}")
+                rec[stage] = measure()
+                bar.update(1)
             record["sequences"][folder.name] = rec
+        bar.close()
     record["chart"] = str(_chart(record, out_dir / "vision_speed_accuracy.png"))
     record["detector_constants"] = _bench_detector_constants(rng)
     record["chart_detector_constants"] = str(_chart_constants(record["detector_constants"],

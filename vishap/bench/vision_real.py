@@ -120,7 +120,10 @@ def run(args: argparse.Namespace) -> dict:
         else:
             synth_csv = synth_labels(synth, tmp / "synth_labels.csv", None if args.synth else args.synth_frames)
             record["synthetic"] = {"sequence": synth.name, "view": "left"}
-        for name, make in _variants(args.detectors).items():
+        from vishap._core.results import progress
+
+        for name, make in progress(list(_variants(args.detectors).items()), desc="bench vision_real", unit="variant",
+                                   quiet=getattr(args, "quiet", False)):
             rec: dict = {}
             try:
                 det = make()

@@ -4,74 +4,55 @@ Each subcommand lives in its own module of this package and exposes ``register(s
 which adds its parser and sets ``func`` (called with the parsed arguments, returning an exit
 code). Modules are discovered, so adding a subcommand never edits this file.
 
-What a command prints: :func:`report` writes a short readable summary when stdout is a terminal,
-and the command's record as one line of JSON when asked (``--json``, see :func:`add_json_flag`)
-or when stdout is a pipe or a file, so scripts keep reading JSON. Commands that write a folder
-also save the record there.
+What a command prints (:func:`vishap._core.results.show_result`, through :func:`report`): a
+progress bar on stderr while it works (on a terminal, not with ``--quiet``), then a few readable
+lines: the figures that matter and where the files are. The full record is saved as JSON in the
+output folder; it goes to stdout, as one line, only with ``--json`` (:func:`add_json_flag`), so a
+script asks for it explicitly.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
-import json
-import os
 import pkgutil
 import sys
 from collections.abc import Iterable
-from pathlib import Path
 
 from vishap import __version__
 from vishap._core.errors import VishapError
+from vishap._core.results import progress_shown, show_result
 
-__all__ = ["main", "build_parser", "report", "add_json_flag", "add_overwrite_flag", "record_lines"]
+__all__ = ["main", "build_parser", "report", "add_json_flag", "add_overwrite_flag", "add_quiet_flag", "quiet",
+           "show_progress"]
 
 
 def add_json_flag(parser: argparse.ArgumentParser) -> None:
-    """``--json``: print the record as one line of JSON even on a terminal."""
-    parser.add_argument("--json", action="store_true", help="print the record as one line of JSON")
+    """``--json``: print the full record as one line of JSON instead of the summary."""
+    parser.add_argument("--json", action="store_true",
+                        help="print the full record as one line of JSON on stdout instead of the summary")
 
 
-def add_overwrite_flag(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+def add_overwrite_flag(parser: argparse.ArgumentParser, what: str = "--out") -> None:
+    parser.add_argument("--overwrite", action="store_true", help=f"replace an existing {what} once this run is complete")
 
 
-def _jsonable(obj):
-    from vishap.bench._common import to_jsonable
-
-    return to_jsonable(obj)
+def add_quiet_flag(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quiet", action="store_true", help="no progress bar (there is none when stderr is not a terminal)")
 
 
-def record_lines(record: dict, *, limit: int = 12) -> list[str]:
-    """A generic summary: the record's top-level numbers, text and flags, one per line."""
-    lines = []
-    for k, v in record.items():
-        if isinstance(v, float):
-            lines.append(f"  {k}: {v:.4g}")
-        elif isinstance(v, (int, str, bool)) or v is None:
-            lines.append(f"  {k}: {v}")
-        if len(lines) >= limit:
-            lines.append("  …")
-            break
-    return lines
+def report(args: argparse.Namespace, record: dict, lines: Iterable[str] | None = None) -> None:
+    """End a command: :func:`~vishap._core.results.show_result` with ``--json`` taken from ``args``."""
+    show_result(record, lines, as_json=bool(getattr(args, "json", False)))
 
 
-def report(args: argparse.Namespace, record: dict, lines: Iterable[str] | None = None, *,
-           save_to: str | os.PathLike | None = None) -> None:
-    """Print a command's result: ``lines`` (default :func:`record_lines`) on a terminal, the JSON
-    record with ``--json`` or when stdout is not a terminal; with ``save_to``, also write the
-    record there (atomically)."""
-    from vishap._core.config import write_atomic
+def quiet(args: argparse.Namespace) -> bool:
+    """Whether the command was asked not to show progress (``--quiet``)."""
+    return bool(getattr(args, "quiet", False))
 
-    text = json.dumps(_jsonable(record))
-    if save_to is not None:
-        write_atomic(save_to, text + "\n")
-    if getattr(args, "json", False) or not sys.stdout.isatty():
-        print(text)
-        return
-    for line in (record_lines(record) if lines is None else lines):
-        print(line)
-    if save_to is not None:
-        print(f"  record: {Path(save_to)}")
+
+def show_progress(args: argparse.Namespace) -> bool:
+    """For library functions taking ``progress=``: a bar only on a terminal and without ``--quiet``."""
+    return progress_shown(quiet(args))
 
 
 def build_parser() -> argparse.ArgumentParser:

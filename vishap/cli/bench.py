@@ -4,8 +4,9 @@ Each benchmark is a module ``vishap/bench/NAME.py`` exposing ``HELP`` (one line)
 ``add_arguments(parser)`` and ``run(args) -> dict`` (and optionally ``summary_lines(record)`` for
 the terminal). ``run`` writes its charts into ``args.out``, which is a temporary folder renamed to
 ``--out`` when the benchmark has finished (:func:`vishap._core.output.output_dir`); this command
-saves the record as ``OUT/NAME.json`` and prints a summary (the JSON with ``--json`` or when
-stdout is not a terminal).
+saves the record as ``OUT/NAME.json`` and prints a summary (the record itself with ``--json``).
+While it runs, a benchmark shows its progress over cases or sweeps with
+:func:`vishap._core.results.progress` (``quiet=args.quiet``).
 """
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ import json
 import pkgutil
 from pathlib import Path
 
-from vishap.cli import add_json_flag, add_overwrite_flag, record_lines, report
+from vishap._core.results import summary_lines
+from vishap.cli import add_json_flag, add_overwrite_flag, add_quiet_flag, report
 
 
 def _bench_modules() -> dict[str, object]:
@@ -44,6 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                             f"(default out/bench/{name})")
         add_overwrite_flag(b)
         add_json_flag(b)
+        add_quiet_flag(b)
         mod.add_arguments(b)
         b.set_defaults(func=_run, bench_module=mod)
 
@@ -63,6 +66,6 @@ def _run(args: argparse.Namespace) -> int:
     args.out = str(folder.final)
     lines_of = getattr(args.bench_module, "summary_lines", None)
     lines = [f"bench {args.bench_name}: record in {folder.final / (args.bench_name + '.json')}"]
-    lines += lines_of(record) if lines_of is not None else record_lines(record)
+    lines += lines_of(record) if lines_of is not None else summary_lines(record)
     report(args, record, lines)
     return 0

@@ -5,7 +5,8 @@ on the scale-out engine; ``DIR/GROUP/seed-NNNNNN`` plus ``DIR/manifest.json``; a
 from __future__ import annotations
 
 import argparse
-import json
+
+from vishap.cli import add_json_flag, add_quiet_flag, report, show_progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -16,8 +17,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     b = ds.add_parser("build", help="render every sequence of SPEC.yaml under --out (resumes a stopped build)")
     b.add_argument("spec", metavar="SPEC.yaml", help="the data-set spec")
     b.add_argument("--out", required=True, help="output folder (new, empty, or an earlier build of the same spec)")
-    b.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_quiet_flag(b)
     add_engine_options(b)
+    add_json_flag(b)
     b.set_defaults(func=_build)
 
 
@@ -28,8 +30,9 @@ def _build(args: argparse.Namespace) -> int:
 
     spec, jobs = load_dataset_spec(args.spec)
     summary = build_sequences(jobs, args.out, workers=default_workers(args), address=args.address, command="dataset build",
-                              parameters=spec.model_dump(exclude_unset=True), progress=not args.quiet)
-    print(json.dumps({"out": summary["out"], "sequences": len(jobs), "built": len(summary["built"]),
-                      "skipped": len(summary["skipped"]), "seconds": round(summary["seconds"], 3),
-                      "engine": summary["engine"]}))
+                              parameters=spec.model_dump(exclude_unset=True), progress=show_progress(args))
+    rec = {"out": summary["out"], "sequences": len(jobs), "built": len(summary["built"]),
+           "skipped": len(summary["skipped"]), "seconds": round(summary["seconds"], 3), "engine": summary["engine"]}
+    report(args, rec, [f"data set {args.spec}: {rec['built']} sequences built, {rec['skipped']} already there, "
+                       f"in {rec['seconds']:.1f} s", f"  in {rec['out']} (list and checksums: manifest.json)"])
     return 0

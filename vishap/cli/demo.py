@@ -9,9 +9,9 @@ when something is not there; it writes the same outputs (but the video).
 from __future__ import annotations
 
 import argparse
-import json
 
 from vishap.apps.config import FAULT_KINDS, SCENES
+from vishap.cli import add_json_flag, add_overwrite_flag, add_quiet_flag, report, show_progress
 
 __all__ = ["register", "parse_fault", "parse_travel"]
 
@@ -45,7 +45,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True,
                    help="output folder (video, plots, log.npz, summary.json), written whole at the end; "
                         "must not exist or be empty")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing --out once the new run is complete")
+    add_overwrite_flag(p)
     p.add_argument("--frames", type=int, default=None, help="camera frames (default: the scene's script length)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--width", type=int, default=480, help="image width, pixels (default 480)")
@@ -74,15 +74,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="live: 'sim' (the MuJoCo PHANToM; its finger pad follows the source's ground truth or the "
                         "tracked finger) or a driver 'module:Class' (default sim)")
     p.add_argument("--duration", type=float, default=30.0, help="live: seconds to run (default 30)")
+    add_quiet_flag(p)
+    add_json_flag(p)
     p.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
     from vishap._core.output import output_dir
+    from vishap.apps.summary import summary_lines
 
     with output_dir(args.out, overwrite=args.overwrite) as o:
         summary = _demo(args, o.path)
-    print(json.dumps(summary))
+    report(args, summary, summary_lines(summary, o.final))
     return 0
 
 
@@ -94,7 +97,7 @@ def _demo(args: argparse.Namespace, out) -> dict:
         if args.contact_model is not None:
             fields["contact_model"] = args.contact_model
         return run_live(args.scene, out=out, cameras=args.cameras, calib=args.calib, rig=args.rig,
-                        device=args.device, duration_s=args.duration, **fields)
+                        device=args.device, duration_s=args.duration, progress=show_progress(args), **fields)
     from vishap.apps import run_demo
     from vishap.apps.config import DemoConfig
     from vishap._core.config import validate
@@ -108,4 +111,4 @@ def _demo(args: argparse.Namespace, out) -> dict:
     if args.contact_model is not None:
         fields["contact_model"] = args.contact_model
     cfg = validate(DemoConfig, fields, file=None)
-    return run_demo(cfg, out, progress=True)
+    return run_demo(cfg, out, progress=show_progress(args))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from vishap.cli import add_json_flag, report
+from vishap.cli import add_json_flag, add_quiet_flag, report, show_progress
 
 
 def _resolution(text: str) -> tuple[int, int]:
@@ -49,7 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-effects", dest="effects", action="store_false",
                    help="exact pixels: no sensor noise, defocus, motion blur or auto-exposure")
     p.add_argument("--msaa", type=int, default=0, help="anti-aliasing samples (0, 2, 4, 8; labels then cost a pass)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_quiet_flag(p)
     p.add_argument("--store", choices=("png", "video"), default="png",
                    help="png: one file per image (default); video: each image stream as a lossless FFV1 video "
                         "(smaller; read by 'vishap track' and 'vishap eval' like the PNGs)")
@@ -72,7 +72,7 @@ def _run(args: argparse.Namespace) -> int:
     _check_render_args(spec)
     if args.seeds is not None or args.workers is not None or args.address is not None:
         return _run_seeds(args, spec)
-    out = write_sequence(args.out, spec, overwrite=args.overwrite, progress=not args.quiet)
+    out = write_sequence(args.out, spec, overwrite=args.overwrite, progress=show_progress(args))
     from vishap.sim.reader import SyntheticSequence
 
     seq = SyntheticSequence(out)

@@ -178,8 +178,9 @@ class Truth:
 
 def calibrate(device, source, rig, *, n_poses: int, seed: int = 0, prompt=None, robust: bool = False,
               design: str = "maximin", frames_per_pose: int = 1, settle: Settle = Settle(),
-              truth: Truth | None = None, gains_path=None) -> dict:
-    """Measure ``n_poses`` usable poses of ``device`` seen by ``source`` (a StereoSource) and solve.
+              truth: Truth | None = None, gains_path=None, progress: bool = False) -> dict:
+    """Measure ``n_poses`` usable poses of ``device`` seen by ``source`` (a StereoSource) and solve
+    (``progress``: a bar over the poses visited, on stderr on a terminal).
 
     Returns ``closed_form`` and ``reprojection_refined`` reports, ``fit`` (the refined transform),
     ``observations`` (arrays per visited pose, with the camera frame each used), ``poses_visited``;
@@ -203,9 +204,16 @@ def calibrate(device, source, rig, *, n_poses: int, seed: int = 0, prompt=None, 
         frame_of_pose[poser.visited - 1] = frame.index
         return frame.left, frame.right
 
+    from vishap._core.results import progress as bar
+
     device.start()
     try:
-        obs = measure(targets, rig, move_to=poser.move_to, grab=grab, needed=n_poses)
+        with bar(total=len(targets), desc="calibrate robot", unit="pose", quiet=not progress) as shown:
+            def move_to(target):
+                shown.update(1)
+                return poser.move_to(target)
+
+            obs = measure(targets, rig, move_to=move_to, grab=grab, needed=n_poses)
     finally:
         device.stop()
     frame_index = np.array([frame_of_pose.get(i, -1) for i in range(len(obs.targets_robot))], dtype=int)
@@ -242,10 +250,10 @@ def _against_truth(obs, frame_index, truth: Truth, rig) -> dict:
 
 def run_calibration(device, source, rig, *, n_poses: int, seed: int = 0, prompt=None, robust: bool = False,
                     frames_per_pose: int = 1, truth: Truth | None = None, out=None, poses_out=None,
-                    describe: dict | None = None) -> dict:
+                    describe: dict | None = None, progress: bool = False) -> dict:
     """``vishap calibrate robot``: calibrate, save ``out`` (tied to ``rig``) and return the JSON record."""
     res = calibrate(device, source, rig, n_poses=n_poses, seed=seed, prompt=prompt, robust=robust,
-                    frames_per_pose=frames_per_pose, truth=truth)
+                    frames_per_pose=frames_per_pose, truth=truth, progress=progress)
     fit = res.pop("fit")
     main = res["reprojection_refined"]
     record = {
@@ -270,10 +278,15 @@ def run_calibration(device, source, rig, *, n_poses: int, seed: int = 0, prompt=
     if out is not None:
         camera_robot.save(out, fit.T, {k: v for k, v in record.items() if k != "pose_set_robot"}, rig=rig)
         record["out"] = str(out)
-    if poses_out is not None:
-        Path(poses_out).parent.mkdir(parents=True, exist_ok=True)
+    if poses_out is not None:  # atomically, as the calibration file: never a half-written file
+        import io
+
+        from vishap._core.config import write_atomic
+
         extra = {} if truth is None else {"T_true": truth.T_robot_cam}
-        np.savez(poses_out, **{k: np.asarray(v) for k, v in res["observations"].items()}, T_robot_cam=fit.T, **extra)
+        buf = io.BytesIO()
+        np.savez(buf, **{k: np.asarray(v) for k, v in res["observations"].items()}, T_robot_cam=fit.T, **extra)
+        write_atomic(poses_out, buf.getvalue())
         record["poses_out"] = str(poses_out)
     return record
 

@@ -138,7 +138,7 @@ class SimCalibration:
 
 
 def calibrate_sim(*, n_poses: int, seed: int = 0, rig_path=None, size=None, robust: bool = False,
-                  out=None, poses_out=None, scene: str = "wall") -> dict:
+                  out=None, poses_out=None, scene: str = "wall", progress: bool = False) -> dict:
     """``vishap calibrate robot --sim``: the shared procedure on the ``sim`` device and rendered cameras;
     saves ``out`` (tied to the rig) and returns the JSON record."""
     rig = StereoRig.load(rig_path) if rig_path else None
@@ -148,7 +148,7 @@ def calibrate_sim(*, n_poses: int, seed: int = 0, rig_path=None, size=None, robu
         try:
             record = run_calibration(device, cameras, sim.rig, n_poses=n_poses, seed=seed, robust=robust,
                                      truth=Truth(sim.T_true, cameras.ee_by_frame), out=out, poses_out=poses_out,
-                                     describe={"device": "sim", "cameras": "render"})
+                                     describe={"device": "sim", "cameras": "render"}, progress=progress)
         finally:
             device.close()
     finally:

@@ -153,8 +153,11 @@ class StereoCalibration:
         }
 
 
-def calibrate_stereo(left, right, board: Board, *, model: str = "k5") -> StereoCalibration:
-    """Calibrate a stereo pair from matching sequences of left/right images (paths or arrays)."""
+def calibrate_stereo(left, right, board: Board, *, model: str = "k5", progress: bool = False) -> StereoCalibration:
+    """Calibrate a stereo pair from matching sequences of left/right images (paths or arrays);
+    ``progress``: a bar over the pairs, on stderr on a terminal."""
+    from vishap._core.results import progress as bar
+
     if model not in _MODELS:
         raise ConfigError(f"distortion model must be one of {sorted(_MODELS)}, got {model!r}", field="model")
     left, right = list(left), list(right)
@@ -163,12 +166,17 @@ def calibrate_stereo(left, right, board: Board, *, model: str = "k5") -> StereoC
     obj_all = board.object_points
     objs, img_l, img_r, used = [], [], [], []
     size = None
-    for i, (a, b) in enumerate(zip(left, right)):
+    first = None
+    for i, (a, b) in enumerate(bar(zip(left, right), total=len(left), desc="calibrate stereo", unit="pair",
+                                   quiet=not progress)):
         ga, gb = _gray(a), _gray(b)
-        s = (ga.shape[1], ga.shape[0])
-        if (gb.shape[1], gb.shape[0]) != s or (size is not None and s != size):
-            raise CalibrationError(f"pair {i}: image sizes differ ({s} vs {gb.shape[::-1]}, first {size})")
-        size = s
+        s, sb = (ga.shape[1], ga.shape[0]), (gb.shape[1], gb.shape[0])
+        if sb != s:
+            raise CalibrationError(f"pair {i}: {_name(b, 'right')} is {_wxh(sb)} but {_name(a, 'left')} is {_wxh(s)}")
+        if size is not None and s != size:
+            raise CalibrationError(f"pair {i}: {_name(a, 'left')} is {_wxh(s)} but the first pair "
+                                   f"({_name(first, 'left')}) is {_wxh(size)}; every image must have one size")
+        size, first = s, (a if first is None else first)
         da, db = detect_board(ga, board), detect_board(gb, board)
         if da is None or db is None:
             continue
@@ -198,6 +206,15 @@ def calibrate_stereo(left, right, board: Board, *, model: str = "k5") -> StereoC
     return StereoCalibration(rig, float(rms), len(used), len(left), per_view, (float(rms_l), float(rms_r)), used)
 
 
+def _name(image, side: str) -> str:
+    """An image for a message: its file name when it came from a file."""
+    return str(image) if isinstance(image, (str, os.PathLike)) else f"the {side} image"
+
+
+def _wxh(size: tuple[int, int]) -> str:
+    return f"{size[0]}x{size[1]}"
+
+
 def expand_glob(pattern: str) -> list[str]:
     """Sorted files matching a glob (``~`` expanded); a pattern that matches nothing is an error."""
     files = sorted(glob.glob(os.path.expanduser(pattern)))
@@ -206,12 +223,13 @@ def expand_glob(pattern: str) -> list[str]:
     return files
 
 
-def calibrate_stereo_files(left_glob: str, right_glob: str, board: Board, *, model: str = "k5") -> StereoCalibration:
+def calibrate_stereo_files(left_glob: str, right_glob: str, board: Board, *, model: str = "k5",
+                           progress: bool = False) -> StereoCalibration:
     """:func:`calibrate_stereo` on two globs, paired in sorted order."""
     lf, rf = expand_glob(left_glob), expand_glob(right_glob)
     if len(lf) != len(rf):
         raise CalibrationError(f"{left_glob!r} matches {len(lf)} files but {right_glob!r} matches {len(rf)}")
-    return calibrate_stereo(lf, rf, board, model=model)
+    return calibrate_stereo(lf, rf, board, model=model, progress=progress)
 
 
 def opencv_sample_stereo_calib(left, right, board: Board) -> dict:

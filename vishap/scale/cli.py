@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 
 from vishap._core.errors import ConfigError
@@ -49,15 +48,19 @@ def default_workers(args: argparse.Namespace) -> int | None:
 
 
 def engine_args(args: argparse.Namespace) -> dict:
-    """``workers=…, address=…`` for :func:`~vishap.scale.map_cases` from parsed options; options
+    """``workers=…, address=…, progress=…`` for :func:`~vishap.scale.map_cases` from parsed options; options
     built without the engine's (a caller's own namespace) run in this process."""
+    from vishap._core.results import progress_shown
+
+    shown = progress_shown(getattr(args, "quiet", False))
     if not hasattr(args, "workers"):
-        return {"workers": 1, "address": None}
-    return {"workers": default_workers(args), "address": args.address}
+        return {"workers": 1, "address": None, "progress": shown}
+    return {"workers": default_workers(args), "address": args.address, "progress": shown}
 
 
 def run_seeds(args: argparse.Namespace, spec) -> int:
     """``vishap synth --seeds A:B [--workers N] [--address ADDR]``: one sequence per seed."""
+    from vishap.cli import report, show_progress
     from vishap.scale.manifest import sha256
     from vishap.scale.sequences import Job, build_sequences, seed_folder, spec_parameters
 
@@ -78,7 +81,10 @@ def run_seeds(args: argparse.Namespace, spec) -> int:
     common.pop("seed")
     common["seeds"] = [args.seeds.start, args.seeds.stop]
     summary = build_sequences(jobs, args.out, workers=default_workers(args), address=args.address,
-                              command="synth", parameters=common, progress=not args.quiet)
-    print(json.dumps({"out": summary["out"], "built": len(summary["built"]), "skipped": len(summary["skipped"]),
-                      "seconds": round(summary["seconds"], 3), "engine": summary["engine"]}))
+                              command="synth", parameters=common, progress=show_progress(args))
+    rec = {"out": summary["out"], "built": len(summary["built"]), "skipped": len(summary["skipped"]),
+           "seconds": round(summary["seconds"], 3), "engine": summary["engine"]}
+    report(args, rec, [f"synth seeds {args.seeds.start}:{args.seeds.stop}: {rec['built']} built, {rec['skipped']} "
+                       f"already there, in {rec['seconds']:.1f} s",
+                       f"  in {rec['out']} (one seed-NNNNNN folder each; checksums: manifest.json)"])
     return 0

@@ -143,7 +143,7 @@ def map_cases(fn: Callable[[Any], Any], cases: Sequence, *, workers: int = 1, ad
     only on its case (seeds in the case, not global state). ``fn`` and the cases must pickle
     (a module-level function). One progress bar counts finished cases over all workers.
     """
-    from tqdm import tqdm
+    from vishap._core.results import progress as progress_bar
 
     cases = list(cases)
     if not cases:  # nothing to run: no Ray start, but a bad address is still an error
@@ -151,7 +151,7 @@ def map_cases(fn: Callable[[Any], Any], cases: Sequence, *, workers: int = 1, ad
             probe(address)
         return []
     with engine(workers, address, threads_per_worker=threads_per_worker) as eng:
-        bar = tqdm(total=len(cases), desc=desc, unit="case", disable=not progress)
+        bar = progress_bar(total=len(cases), desc=desc, unit="case", quiet=not progress)
         try:
             if eng.local:
                 out = []

@@ -107,8 +107,12 @@ def fit_skin_model(folders, *, frames_per_sequence: int = 20, **kw) -> SkinModel
 
 
 def evaluate_sequence(folder, *, skin_model: SkinModel | None = None, config: PipelineConfig | None = None,
-                      max_frames: int | None = None, seg_every: int = 1, keep_tracks: bool = False) -> dict:
-    """Run the pipeline over a labelled sequence and score it (see the module docstring)."""
+                      max_frames: int | None = None, seg_every: int = 1, keep_tracks: bool = False,
+                      progress: bool = False) -> dict:
+    """Run the pipeline over a labelled sequence and score it (see the module docstring); ``progress``:
+    a bar on stderr (on a terminal)."""
+    from vishap._core.results import progress as bar
+
     seq = open_sequence(folder)
     gt = seq.gt
     n = len(seq) if max_frames is None else min(len(seq), max_frames)
@@ -118,7 +122,7 @@ def evaluate_sequence(folder, *, skin_model: SkinModel | None = None, config: Pi
     pipe = VisionPipeline(seq.rig, skin_model=skin_model, config=cfg)
     estimates, masks_counts = [], np.zeros(4, np.int64)
     frames_for_seg = []
-    for i in range(n):
+    for i in bar(range(n), desc=f"eval {Path(folder).name}", unit="frame", quiet=not progress):
         f = seq[i]
         est = pipe.process(f)
         estimates.append(est)

@@ -190,7 +190,7 @@ def score_fingertips(errors: list[float | None], hidden_found: list[bool] | None
 
 
 def evaluate_fingertip(source: str | os.PathLike, labels: str | os.PathLike, detector: MonoDetector, *,
-                       sequence: bool | None = None, subset=None) -> tuple[dict, list[dict]]:
+                       sequence: bool | None = None, subset=None, progress: bool = False) -> tuple[dict, list[dict]]:
     """Run ``detector`` on ``source`` and score it against ``labels``: ``(record, per_frame_rows)``.
 
     ``subset``: optional set of frame keys; other labelled frames are ignored (still images are
@@ -206,9 +206,13 @@ def evaluate_fingertip(source: str | os.PathLike, labels: str | os.PathLike, det
     if known is not None:
         _check_exist(lab, known, labels, source)
     seq = frames.sequence if sequence is None else sequence
+    from vishap._core.results import progress as bar
+
     rows, seen = [], set()
     detector.reset()
-    for keys, t, img in _frames_needed(frames, by_key, seq):
+    total = len(by_key) if not seq else (None if frames._items is None else len(frames._items))
+    for keys, t, img in bar(_frames_needed(frames, by_key, seq), total=total, desc="eval fingertip", unit="frame",
+                            quiet=not progress):
         label = next((by_key[k] for k in keys if k in by_key), None)
         if not seq:
             detector.reset()

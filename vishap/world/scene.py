@@ -294,7 +294,7 @@ def available_scenes() -> list[str]:
 def load_scene(name_or_path: str | os.PathLike, *, modes: ModeDatabase | None = None) -> Scene:
     """Load a scene by name (``datasets/synthetic/scenes/NAME.yaml``) or by path, validated."""
     p = Path(name_or_path)
-    if not p.suffix and not p.exists():
+    if not p.suffix and not p.is_file():  # a folder named like a scene (a run's --out) is not a scene file
         p = SCENES_DIR / f"{name_or_path}.yaml"
         if not p.is_file():
             raise ConfigError(f"unknown scene {str(name_or_path)!r}; expected a file or one of {available_scenes()}",
