@@ -331,7 +331,9 @@ _CONTROLLER = {}
 def check_controller(q, w, target, force) -> str | None:
     """Three ticks of ``Controller.compute`` at joint state ``q``, ``w`` toward ``target`` with an
     extra ``force``: torques finite and within the motor bound, and never all zero while the joint
-    state is finite (zero would drop gravity compensation and let the arm fall)."""
+    state is finite (zero would drop gravity compensation and let the arm fall). A finite force
+    whose square overflows is commanded at the force limit in its own direction (or at a motor's
+    peak torque, which scales the force as a whole), not dropped to zero or to gravity alone."""
     from vishap.robot.controller import Controller
     from vishap.robot.device import DeviceLimits
     from vishap.robot.gravity import gravity_torque
@@ -352,6 +354,17 @@ def check_controller(q, w, target, force) -> str | None:
     if np.all(np.isfinite(q)) and np.all(np.isfinite(w)) and np.all(tau == 0.0) \
             and np.linalg.norm(gravity_torque(np.asarray(q, dtype=float))) > 1e-6:
         return f"Controller.compute commanded zero torque, dropping gravity compensation (target {list(target)}, force {list(force)})"
+    f = np.asarray(force, dtype=float)
+    if np.all(np.isfinite(f)) and np.all(np.isfinite(w)) and not math.isfinite(float(np.sum((f / 1e150) ** 2)) * 1e300):
+        F = np.asarray(c.F_cmd, dtype=float)
+        n = math.hypot(*F)
+        at_motor = np.any(np.abs(tau) >= np.asarray(c._motor) * (1 - 1e-9))
+        lim = DeviceLimits.from_params()
+        at_limit = n >= min(lim.peak_force_n, lim.continuous_force_n) * (1 - 1e-9)
+        cos = float(F @ (f / np.max(np.abs(f)))) / (n * float(np.linalg.norm(f / np.max(np.abs(f))))) if n > 0 else 0.0
+        if not (at_limit or at_motor) or cos < 0.99:
+            return (f"Controller.compute sent an overflowing force {f.tolist()} to F_cmd {F.tolist()} (|F| {n:.3g} N, "
+                    f"cos {cos:.3f}), not to the limit along it")
     return None
 
 
