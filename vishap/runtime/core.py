@@ -33,7 +33,7 @@ import numpy as np
 from vishap.robot.device import DeviceState
 from vishap.robot.kinematics import tip_state_scalar
 from vishap.robot.object_gain import ENGAGED, FREE, SURFACE
-from vishap.runtime.safety import TargetGuard
+from vishap.runtime.safety import TargetGuard, record_values_valid
 
 __all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "ServoStep", "ServoTick", "GUARD_CODES",
            "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
@@ -82,8 +82,6 @@ class TargetRecord:
         """The record packed in ``a``; never raises on numbers: values no scene step writes (a counter
         that is not a positive integer, a flag not 0/1, a subject not in −1..n_subjects−1) give
         ``TargetRecord(valid=False)``."""
-        from vishap.runtime.safety import record_values_valid
-
         v = [float(x) for x in a]
         if len(v) != RECORD_SIZE or not record_values_valid(v[0], [v[i] for i in _FLAGS], v[8], n_subjects):
             return cls(valid=False)
