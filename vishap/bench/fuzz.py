@@ -357,8 +357,9 @@ def check_controller(q, w, target, force) -> str | None:
     f = np.asarray(force, dtype=float)
     # a force whose components' sum overflows is refused as non-finite input by the controller's
     # one-addition test (and counted): the property covers the forces it accepts
-    if math.isfinite(float(f[0]) + float(f[1]) + float(f[2])) and np.all(np.isfinite(w)) \
-            and not math.isfinite(float(np.sum((f / 1e150) ** 2)) * 1e300):
+    with np.errstate(over="ignore"):
+        overflows = not math.isfinite(float(np.sum((f / 1e150) ** 2)) * 1e300)
+    if math.isfinite(float(f[0]) + float(f[1]) + float(f[2])) and np.all(np.isfinite(w)) and overflows:
         F = np.asarray(c.F_cmd, dtype=float)
         n = math.hypot(*F)
         at_motor = np.any(np.abs(tau) >= np.asarray(c._motor) * (1 - 1e-9))
