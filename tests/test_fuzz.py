@@ -53,7 +53,7 @@ def _load(name, ops, tmp_path_factory):
     return obj, data
 
 
-_CLEAN_LOADERS = ["rig", "world_scene_wall", "world_scene_button", "world_scene_fabric", "skin_model",
+_CLEAN_LOADERS = ["rig", "rig_opencv_sample", "world_scene_wall", "world_scene_button", "world_scene_fabric", "skin_model",
                   "tactile_config", "gains", "camera_robot", "trajectory", "modes"]
 
 
@@ -148,7 +148,8 @@ def test_saturate(F, limit):
 
 @settings(max_examples=300, **_KNOWN)
 @given(inputs=st.lists(st.tuples(st.just(0.001), _vec, st.one_of(_hostile, st.sampled_from([-0.01, -1.0, 0.01])),
-                                 st.one_of(st.just(0.9), _hostile)), min_size=1, max_size=5),
+                                 st.one_of(st.just(0.9), _hostile), st.booleans(), st.booleans()),
+                       min_size=1, max_size=5),
        key=st.sampled_from([None, *fuzz.GUARD_CONFIG]), bad=_hostile)
 def test_target_guard(inputs, key, bad):
     cfg = dict(fuzz.GUARD_CONFIG)
@@ -169,8 +170,49 @@ def test_servo_holds_on_a_bad_first_target(target):
     assert fuzz.check_servo_holds(target, ticks=150) is None
 
 
+def _record_values():
+    from vishap.runtime.core import RECORD_SIZE, TargetRecord
+
+    good = TargetRecord(10**6, (0.2, 0.0, -0.13), 0.0, 0.9, True, True, 0, False, False).pack()
+    edit = st.lists(st.tuples(st.integers(0, RECORD_SIZE - 1), _hostile), min_size=1, max_size=3)
+    return st.one_of(st.just(tuple([0.0] * RECORD_SIZE)),
+                     edit.map(lambda ch: tuple(_apply(good, ch))),
+                     st.tuples(*[_hostile] * RECORD_SIZE))
+
+
+def _apply(values, changes):
+    out = list(values)
+    for i, v in changes:
+        out[i] = v
+    return out
+
+
+@settings(max_examples=60, **_KNOWN)
+@given(values=_record_values())
+def test_live_servo_record_intake(values):
+    """The live servo's intake: never raises, stays finite, holds and counts a record no scene step
+    writes (the all-zero record first among them), never takes it for "nothing yet"."""
+    assert fuzz.check_live_record(values) is None
+
+
 def test_device_checks_pass_on_sane_inputs():
     """The properties are not vacuous: sane inputs satisfy them, so an xfail above is a real finding."""
     assert fuzz.check_saturate([3.0, 4.0, 12.0], 8.5) is None
     assert fuzz.check_guard(dict(fuzz.GUARD_CONFIG), [(0.001, (0.01, 0.0, 0.02), 0.01, 0.9)]) is None
     assert fuzz.check_controller((0.1, 0.3, -0.2), (0.0, 0.0, 0.0), (0.15, 0.0, -0.1), (0.0, 0.0, 1.0)) is None
+    assert fuzz.check_guard(dict(fuzz.GUARD_CONFIG), [(0.001, (0.01, 0.0, 0.02), 0.01, 0.9, True, True)]) is None
+    from vishap.runtime.core import TargetRecord
+
+    assert fuzz.check_live_record(TargetRecord(10**6, (0.2, 0.0, -0.13), 0.0, 0.9, True, True, 0).pack()) is None
+
+
+def test_fuzz_judges_records_independently():
+    """The fuzzer's own reading of a scene step's record agrees with what the scene step writes and
+    refuses the all-zero record, so check_live_record's "must hold" is not vacuous."""
+    import numpy as np
+
+    from vishap.runtime.core import RECORD_SIZE, TargetRecord
+
+    assert fuzz._is_scene_record(TargetRecord(1, (0.2, 0.0, -0.1), 0.1, 0.9, True, True, 0, lost=True).pack(), 1)
+    assert not fuzz._is_scene_record(np.zeros(RECORD_SIZE), 1)
+    assert not fuzz._is_scene_record(TargetRecord(1, subject=1).pack(), 1)

@@ -57,6 +57,37 @@ def test_synthetic_chessboard_recovers_distorted_rig(distorted_rig, board_tools,
     _check_recovers(distorted_rig, cal, (lefts[-1], rights[-1]), board)
 
 
+def test_calibrate_stereo_writes_image_size_rms_and_board_into_a_group_readable_rig_file(
+        distorted_rig, board_tools, rng, tmp_path, capsys):
+    import os
+    import stat
+
+    tex, _ = board_tools.chessboard_texture(9, 6, 40)
+    square = 0.025
+    views = board_tools.board_views(rng, 6, centre_m=(11 * square / 2, 8 * square / 2))
+    lefts, rights = _render_pairs(distorted_rig, tex, square / 40, views, board_tools.render_board)
+    for k, (a, b) in enumerate(zip(lefts, rights)):
+        cv2.imwrite(str(tmp_path / f"l{k:02d}.png"), a)
+        cv2.imwrite(str(tmp_path / f"r{k:02d}.png"), b)
+    out = tmp_path / "calib" / "rig.yaml"
+    old = os.umask(0o022)
+    try:
+        assert main(["calibrate", "stereo", "--left", str(tmp_path / "l*.png"), "--right", str(tmp_path / "r*.png"),
+                     "--board", "9x6", "--square", str(square), "--out", str(out)]) == 0
+    finally:
+        os.umask(old)
+    rec = json.loads(capsys.readouterr().out)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o644  # the umask's mode, not mkstemp's 0600
+    text = out.read_text()
+    for node in ("image_size:", "rms_px:", "board: chessboard", "board_width: 9", "board_height: 6", "square_size:"):
+        assert node in text, node
+    rig = StereoRig.load(out)
+    assert rig.image_size == distorted_rig.image_size
+    assert rig.rms_px == pytest.approx(rec["rms_px"], rel=1e-12) and 0 < rig.rms_px < 0.5
+    assert (rig.board, rig.board_size, rig.square_m) == ("chessboard", (9, 6), square)
+    assert rig.summary()["board_size"] == [9, 6]
+
+
 def test_synthetic_charuco_recovers_rig(distorted_rig, board_tools, rng):
     board = parse_board("7x5", 0.035, charuco=True, marker_m=0.026)
     tex = board.charuco_board().generateImage((7 * 50, 5 * 50), marginSize=0)
@@ -67,6 +98,7 @@ def test_synthetic_charuco_recovers_rig(distorted_rig, board_tools, rng):
     cal = calibrate_stereo(lefts[:-1], rights[:-1], board)
     assert cal.pairs_used >= 7
     assert cal.rms_px < 0.5
+    assert (cal.rig.board, cal.rig.board_size, cal.rig.rms_px) == ("charuco", (7, 5), cal.rms_px)
     _check_recovers(distorted_rig, cal, (lefts[-1], rights[-1]), board)
 
 
@@ -84,8 +116,10 @@ def test_opencv_sample_pairs_reach_the_sample_rms(opencv_stereo_dir, tmp_path, c
     assert rec["pairs_used"] == ref["pairs_used"] == 13
     assert rec["rms_px"] <= ref["rms_px"]
     assert rec["baseline_m"] == pytest.approx(ref["baseline_m"], rel=0.02)
-    # the written file loads, and rectification puts matching corners on the same row
+    # the written file loads with the calibration's RMS and board, and rectification puts matching
+    # corners on the same row
     rig = StereoRig.load(out)
+    assert rig.rms_px == rec["rms_px"] and rig.board_size == (9, 6) and rig.square_m == 0.025
     ids_l, uv_l = detect_board(left[0], Board(9, 6, 0.025))
     ids_r, uv_r = detect_board(right[0], Board(9, 6, 0.025))
     dv = rig.rectify_points(uv_l, "left")[:, 1] - rig.rectify_points(uv_r, "right")[:, 1]

@@ -8,9 +8,10 @@ from vishap.world.world import World
 
 
 def test_record_packs_and_unpacks_every_field():
-    r = TargetRecord(7, (0.1, 0.2, -0.3), 1.5, 0.8, False, True, 2, True, False, (1.0, 2.0, 3.0), (0.1, 0.0, -0.2), 1.52)
+    r = TargetRecord(7, (0.1, 0.2, -0.3), 1.5, 0.8, False, True, 2, True, False, (1.0, 2.0, 3.0), (0.1, 0.0, -0.2), 1.52,
+                     lost=True)
     a = r.pack()
-    assert a.dtype == np.float64 and a.shape == (18,)
+    assert a.dtype == np.float64 and a.shape == (19,)
     assert TargetRecord.unpack(a) == r
     p, v = r.finger_at(1.62)
     assert np.allclose(p, [1.01, 2.0, 2.98]) and np.allclose(v, [0.1, 0.0, -0.2])

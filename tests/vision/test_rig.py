@@ -242,13 +242,17 @@ def test_rectification_that_does_not_belong_to_the_rig_is_refused(distorted_rig,
 def test_file_carries_image_size_rms_and_board(distorted_rig, tmp_path):
     import stat
 
-    rig = distorted_rig.with_calibration_info(rms_px=0.31, board="9x6 chessboard, 25 mm squares")
+    rig = distorted_rig.with_calibration_info(rms_px=0.31, board="chessboard", board_size=(9, 6), square_m=0.025)
     path = rig.save(tmp_path / "rig.yaml")
     text = path.read_text()
-    assert "image_size: [ 640, 480 ]" in text and "rms_px: 0.31" in text and "board:" in text
+    for node in ("image_size: [ 640, 480 ]", "rms_px: 0.31", "board: chessboard", "board_width: 9", "board_height: 6",
+                 "square_size: 0.025"):
+        assert node in text, node
     back = StereoRig.load(path)
-    assert back.equals(rig) and back.rms_px == 0.31 and back.board.startswith("9x6")
-    assert back.summary()["rms_px"] == 0.31
+    assert back.equals(rig) and back.rms_px == 0.31 and back.board == "chessboard"
+    assert back.board_size == (9, 6) and back.square_m == 0.025
+    assert not back.equals(rig.with_calibration_info(rms_px=0.31, board="chessboard", board_size=(9, 7), square_m=0.025))
+    assert back.summary()["rms_px"] == 0.31 and back.summary()["square_m"] == 0.025
     assert stat.S_IMODE(path.stat().st_mode) & 0o040  # group-readable, not 0600
 
 
@@ -289,3 +293,25 @@ def test_unknown_node_and_xml_are_named(ideal_rig, tmp_path):
     path.write_text('<?xml version="1.0"?>\n<opencv_storage></opencv_storage>\n')
     with pytest.raises(ConfigError, match="XML"):
         StereoRig.load(path)
+
+
+@pytest.mark.parametrize("node, value, field", [
+    ("rms_px", ".nan", "rms_px"), ("rms_px", "-1.", "rms_px"), ("rms_px", '"x"', "rms_px"),
+    ("square_size", ".inf", "square_size"), ("square_size", "0.", "square_size"), ("square_size", "25.", "square_size"),
+    ("board_width", "1", "board_width"), ("board_width", "1e300", "board_width"), ("board_width", "9.5", "board_width"),
+    ("board_height", "100000", "board_height"), ("board_height", ".nan", "board_height"),
+])
+def test_calibration_info_out_of_range_is_refused_with_the_field(distorted_rig, tmp_path, node, value, field):
+    rig = distorted_rig.with_calibration_info(rms_px=0.31, board="chessboard", board_size=(9, 6), square_m=0.025)
+    path = _write_and_edit(rig, tmp_path, lambda t: re.sub(rf"^{node}: .*$", f"{node}: {value}", t, count=1, flags=re.M))
+    with pytest.raises(ConfigError) as exc:
+        StereoRig.load(path)
+    assert exc.value.field == field and "rig.yaml" in str(exc.value)
+
+
+def test_a_pattern_size_needs_both_sides(distorted_rig, tmp_path):
+    rig = distorted_rig.with_calibration_info(board_size=(9, 6))
+    path = _write_and_edit(rig, tmp_path, lambda t: re.sub(r"^board_height: .*\n", "", t, flags=re.M))
+    with pytest.raises(ConfigError, match="board_width and board_height") as exc:
+        StereoRig.load(path)
+    assert exc.value.field == "board_height"

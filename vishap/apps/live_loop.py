@@ -15,6 +15,7 @@ recording in real time. Both processes write into one log with the batch demo's 
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import time
@@ -60,15 +61,27 @@ class LiveCycle:
         self.finger = fing
         self._n = RECORD_SIZE
         self._unpack = TargetRecord.unpack
-        self._rec = TargetRecord()
+        self._n_subjects = len(scene.objects)
+        self._rec = TargetRecord()   # before the first write: idle, the arm held where it is
+        self._good = self._rec       # the newest record that unpacked as valid
+        self._raw_seq = None         # the counter field of the newest values read
         self._out = np.zeros(STATE_SIZE)
         self._guard_codes = GUARD_CODES
 
     def step(self, t: float, target) -> np.ndarray:
-        if target[0] != self._rec.seq:  # a new record (seq 0: none yet)
-            self._rec = self._unpack(target[: self._n])
-            if self.finger is not None and hasattr(self.finger, "offset") and np.isfinite(target[self._n]):
-                self.finger.offset = float(target[self._n])
+        # ``target`` is None until the vision process's first write. Anything written is judged by
+        # TargetRecord.unpack: values no scene step writes (an all-zero record among them) are a
+        # fault the guard counts and holds on (then retreats), keeping the newest good record's
+        # subject and flags so a pressed surface is not pulled away at once
+        if target is not None and target[0] != self._raw_seq:
+            self._raw_seq = float(target[0])
+            rec = self._unpack(target[: self._n], self._n_subjects)
+            if rec.valid:
+                self._good = self._rec = rec
+                if self.finger is not None and hasattr(self.finger, "offset") and np.isfinite(target[self._n]):
+                    self.finger.offset = float(target[self._n])
+            else:
+                self._rec = dataclasses.replace(self._good, valid=False)
         self.cycle.servo(t, self._rec)
         self.cycle.tactile(t)
         out = self._out

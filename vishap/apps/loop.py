@@ -214,7 +214,7 @@ def log_scene_row(log, t, rec, inter, p_pad, p_dev, mount, world_ms) -> None:
         t=t, t_sample=rec.made_at, seq=rec.seq, finger_robot=p_pad, device_point=p_dev,
         X_d=np.asarray(rec.X_ee, float) + mount, calibrated=rec.calibrated, confidence=rec.confidence,
         armed=rec.armed, subject=rec.subject, depth=np.nan if inter is None else float(inter.depth),
-        imminent=rec.imminent, in_contact=rec.in_contact, world_ms=world_ms)
+        imminent=rec.imminent, in_contact=rec.in_contact, lost=rec.lost, world_ms=world_ms)
 
 
 def _stage_ms(timings: dict) -> dict:

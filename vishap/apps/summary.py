@@ -186,7 +186,8 @@ def summary_lines(summary: dict, out) -> list[str]:
 
 def reaction_misses(meta: dict, ch: dict) -> int:
     """Servo ticks that tracked a target the log shows was bad: non-finite, uncalibrated, older than
-    the configured ``stale_after_s`` or below the guard's confidence floor. Computed from the logged
+    the configured ``stale_after_s``, below the guard's confidence floor or made from a frame where
+    vision lost the finger (logs that predate the ``lost`` flag lack it). Computed from the logged
     records the servo used (``servo/record_seq`` → ``scene`` row), independently of the guard."""
     servo, scene = ch.get("servo", {}), ch.get("scene", {})
     if not len(servo.get("t", [])):
@@ -205,4 +206,6 @@ def reaction_misses(meta: dict, ch: dict) -> int:
     bad = (~np.all(np.isfinite(scene["X_d"][i]), axis=1) | ~scene["calibrated"][i].astype(bool)
            | (t - scene["t_sample"][i] > cfg["stale_after_s"] + 1e-9)
            | (scene["confidence"][i] < TargetGuard.min_confidence))
+    if "lost" in scene:
+        bad |= scene["lost"][i].astype(bool)
     return int(bad.sum() + np.sum(~known))

@@ -12,10 +12,13 @@ bombs. The outcome is *accepted*, *refused* (a :class:`~vishap._core.errors.Vish
 *crash* (any other exception). An accepted file that carried an injected NaN/inf, or whose loaded
 object holds one, counts in ``accepted_nonfinite``.
 
-Device-path cases drive ``saturate``, ``TargetGuard``, ``Controller.compute`` and ``ServoLoop.tick``
-with NaN/inf/overflowing/future-stamped/all-zero inputs and check what a device must never see:
-a non-finite or over-limit force, gravity compensation dropped, a future-stamped target tracked,
-an arm that moves on a NaN target from the first tick. Each violated property is a
+Device-path cases drive ``saturate``, ``TargetGuard``, ``Controller.compute``, ``ServoLoop.tick``
+and the live servo process's record intake (``LiveCycle.step``: the mailbox's values → the target
+record → guard, law, controller, device) with NaN/inf/overflowing/future-stamped/all-zero inputs and
+check what a device must never see: a non-finite or over-limit force, gravity compensation dropped,
+a future-stamped target tracked, a target tracked after vision said the finger was lost, an arm that
+moves on a NaN target from the first tick, a record no scene step writes (all zero among them)
+taken for "nothing yet" or tracked, or an exception in the servo. Each violated property is a
 ``device_failure``.
 
 Cases run in child processes (``--jobs``) that report one JSON line per case; a child killed by a
@@ -46,7 +49,7 @@ QUICK_ARGS = ["--cases", "3000"]
 
 __all__ = ["HELP", "QUICK_ARGS", "add_arguments", "run", "TARGETS", "LOADERS", "DEVICE", "OPS", "TOKENS", "apply_ops",
            "make_case", "run_case", "check_saturate", "check_guard", "check_controller", "check_servo_holds",
-           "GUARD_CONFIG", "fuzz"]
+           "check_live_record", "GUARD_CONFIG", "fuzz"]
 
 _REPO = Path(__file__).resolve().parents[2]
 _NUMBER = re.compile(r"(?<![\w.])[-+]?(?:\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?)(?![\w.])")
@@ -79,14 +82,37 @@ def _read(rel: str) -> Callable[[], str]:
     return lambda: (_REPO / rel).read_text()
 
 
-def _rig_text() -> str:
+def _rig():
     from vishap._core.pose import rotvec_to_matrix
     from vishap.vision.rig import StereoRig
 
     K1 = np.array([[560.0, 0.0, 322.0], [0.0, 558.0, 241.5], [0.0, 0.0, 1.0]])
-    rig = StereoRig((640, 480), K1, np.array([-0.21, 0.08, 0.0012, -0.0007, -0.012]), K1.copy(), np.zeros(5),
-                    rotvec_to_matrix([0.004, -0.03, 0.002]), np.array([-0.0601, 0.0007, 0.0012]))
-    return rig.with_calibration_info(rms_px=0.3, board="9x6 chessboard 25 mm").to_filestorage_string()
+    return StereoRig((640, 480), K1, np.array([-0.21, 0.08, 0.0012, -0.0007, -0.012]), K1.copy(), np.zeros(5),
+                     rotvec_to_matrix([0.004, -0.03, 0.002]), np.array([-0.0601, 0.0007, 0.0012]))
+
+
+def _rig_text() -> str:
+    """A rig file as ``vishap calibrate stereo`` writes it (RMS, board kind, pattern size, square)."""
+    return _rig().with_calibration_info(rms_px=0.3, board="chessboard", board_size=(9, 6),
+                                        square_m=0.025).to_filestorage_string()
+
+
+def _rig_opencv_sample_text() -> str:
+    """OpenCV's stereo_calib sample's two files (intrinsics.yml: M1 D1 M2 D2; extrinsics.yml: R T R1 R2
+    P1 P2 Q) concatenated, with the image size the sample does not write."""
+    import cv2
+
+    rig = _rig()
+    docs = []
+    for names in ((("M1", rig.K_left), ("D1", rig.dist_left.reshape(1, -1)), ("M2", rig.K_right),
+                   ("D2", rig.dist_right.reshape(1, -1))),
+                  (("R", rig.R), ("T", rig.T.reshape(3, 1)), ("R1", rig.R1), ("R2", rig.R2), ("P1", rig.P1),
+                   ("P2", rig.P2), ("Q", rig.Q))):
+        fs = cv2.FileStorage(".yml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
+        for name, a in names:
+            fs.write(name, np.ascontiguousarray(a, dtype=np.float64))
+        docs.append(fs.releaseAndGetString())
+    return docs[0] + "image_size: [ 640, 480 ]\n" + docs[1]
 
 
 def _skin_text() -> str:
@@ -123,6 +149,7 @@ _load_modes = _call("vishap.world.modes:load_modes")
 
 LOADERS = [
     Target("rig", "loader", ".yaml", _rig_text, _load_rig),
+    Target("rig_opencv_sample", "loader", ".yml", _rig_opencv_sample_text, _load_rig),
     Target("world_scene_wall", "loader", ".yaml", _read("datasets/synthetic/scenes/wall.yaml"), _load_world_scene),
     Target("world_scene_button", "loader", ".yaml", _read("datasets/synthetic/scenes/button.yaml"), _load_world_scene),
     Target("world_scene_fabric", "loader", ".yaml", _read("datasets/synthetic/scenes/fabric.yaml"), _load_world_scene),
@@ -255,9 +282,10 @@ GUARD_CONFIG = dict(box_lo=(-0.1, -0.1, -0.1), box_hi=(0.1, 0.1, 0.1), retreat_p
 
 def check_guard(config: dict, inputs) -> str | None:
     """Build a ``TargetGuard`` from ``config`` (any non-finite value must be refused) and feed it
-    ``inputs``: tuples ``(dt_s, X_d, age_s, confidence)`` with the target made ``age_s`` before
-    now (negative: stamped in the future). Every decision must be finite and inside the box,
-    and a target from the future is never tracked."""
+    ``inputs``: tuples ``(dt_s, X_d, age_s, confidence[, lost[, valid]])`` with the target made
+    ``age_s`` before now (negative: stamped in the future). Every decision must be finite and inside
+    the box, and a target from the future, one vision reported lost or one from a corrupt record is
+    never tracked."""
     from vishap.runtime.safety import TargetGuard
 
     try:
@@ -268,13 +296,18 @@ def check_guard(config: dict, inputs) -> str | None:
     if bad:
         return f"TargetGuard accepted a non-finite {bad[0]}={config[bad[0]]}"
     t = 1.0
-    for dt, X, age, conf in inputs:
+    for dt, X, age, conf, *flags in inputs:
+        lost, valid = (list(flags) + [False, True][len(flags):])[:2]
         t += dt
-        d = guard.decide(t, X, t - age, conf)
+        d = guard.decide(t, X, t - age, conf, lost=lost, valid=valid)
         if not np.all(np.isfinite(d.X_d)) or np.any(d.X_d < guard.box_lo - 1e-12) or np.any(d.X_d > guard.box_hi + 1e-12):
             return f"TargetGuard gave {d.X_d.tolist()} for X={list(X)}, age={age}, confidence={conf}"
         if age < -1e-9 and math.isfinite(age) and d.action == "track":
             return f"TargetGuard tracked a target stamped {-age:.3g} s in the future"
+        if lost and d.action == "track":
+            return "TargetGuard tracked a target vision reported lost"
+        if not valid and d.action == "track":
+            return "TargetGuard tracked the content of a corrupt record"
     return None
 
 
@@ -287,7 +320,8 @@ def _dev_guard(rng):
     inputs = []
     for _ in range(int(rng.integers(1, 6))):
         age = -float(rng.choice([0.01, 1.0, 1e6])) if rng.random() < 0.3 else _value(rng, 0.01)
-        inputs.append((0.001, [_value(rng, 0.02) for _ in range(3)], age, _value(rng, 0.9)))
+        inputs.append((0.001, [_value(rng, 0.02) for _ in range(3)], age, _value(rng, 0.9),
+                       bool(rng.random() < 0.2), bool(rng.random() < 0.9)))
     return check_guard(cfg, inputs)
 
 
@@ -297,7 +331,9 @@ _CONTROLLER = {}
 def check_controller(q, w, target, force) -> str | None:
     """Three ticks of ``Controller.compute`` at joint state ``q``, ``w`` toward ``target`` with an
     extra ``force``: torques finite and within the motor bound, and never all zero while the joint
-    state is finite (zero would drop gravity compensation and let the arm fall)."""
+    state is finite (zero would drop gravity compensation and let the arm fall). A finite force
+    whose square overflows is commanded at the force limit in its own direction (or at a motor's
+    peak torque, which scales the force as a whole), not dropped to zero or to gravity alone."""
     from vishap.robot.controller import Controller
     from vishap.robot.device import DeviceLimits
     from vishap.robot.gravity import gravity_torque
@@ -318,6 +354,21 @@ def check_controller(q, w, target, force) -> str | None:
     if np.all(np.isfinite(q)) and np.all(np.isfinite(w)) and np.all(tau == 0.0) \
             and np.linalg.norm(gravity_torque(np.asarray(q, dtype=float))) > 1e-6:
         return f"Controller.compute commanded zero torque, dropping gravity compensation (target {list(target)}, force {list(force)})"
+    f = np.asarray(force, dtype=float)
+    # a force whose components' sum overflows is refused as non-finite input by the controller's
+    # one-addition test (and counted): the property covers the forces it accepts
+    with np.errstate(over="ignore"):
+        overflows = not math.isfinite(float(np.sum((f / 1e150) ** 2)) * 1e300)
+    if math.isfinite(float(f[0]) + float(f[1]) + float(f[2])) and np.all(np.isfinite(w)) and overflows:
+        F = np.asarray(c.F_cmd, dtype=float)
+        n = math.hypot(*F)
+        at_motor = np.any(np.abs(tau) >= np.asarray(c._motor) * (1 - 1e-9))
+        lim = DeviceLimits.from_params()
+        at_limit = n >= min(lim.peak_force_n, lim.continuous_force_n) * (1 - 1e-9)
+        cos = float(F @ (f / np.max(np.abs(f)))) / (n * float(np.linalg.norm(f / np.max(np.abs(f))))) if n > 0 else 0.0
+        if not (at_limit or at_motor) or cos < 0.99:
+            return (f"Controller.compute sent an overflowing force {f.tolist()} to F_cmd {F.tolist()} (|F| {n:.3g} N, "
+                    f"cos {cos:.3f}), not to the limit along it")
     return None
 
 
@@ -364,11 +415,93 @@ def _dev_servo(rng):
     return check_servo_holds(bad)
 
 
+_LIVE = {}
+
+
+def _is_scene_record(values, n_subjects: int) -> bool:
+    """The fuzzer's own reading of what a scene step writes (independent of the code under test): a
+    counter 1, 2, …; the calibrated, armed, imminent, in-contact and lost flags 0 or 1; a subject
+    −1 … n−1."""
+    from vishap.runtime.core import RECORD_SIZE
+
+    v = [float(x) for x in values]
+    if len(v) != RECORD_SIZE:
+        return False
+    whole = lambda x: math.isfinite(x) and x == int(x)  # noqa: E731
+    return (whole(v[0]) and v[0] >= 1 and all(v[i] in (0.0, 1.0) for i in (6, 7, 9, 10, 18))
+            and whole(v[8]) and -1 <= v[8] < n_subjects)
+
+
+def check_live_record(values, ticks: int = 3) -> str | None:
+    """The live servo process's intake (``LiveCycle.step``) fed ``values`` as the mailbox's newest
+    record after a good one was tracked. It must never raise, its state must stay finite, and
+    values no scene step writes (an all-zero record among them) must be counted as a fault and held
+    on, never tracked nor taken for "nothing yet"."""
+    from vishap.runtime.core import GUARD_CODES, RECORD_SIZE, TargetRecord
+
+    if "c" not in _LIVE:
+        from vishap.apps.config import DemoConfig
+        from vishap.apps.live_loop import LiveCycle
+
+        _LIVE["c"] = LiveCycle(DemoConfig(scene="wall").model_dump(), "sim", None)
+        _LIVE["t"], _LIVE["seq"] = 0.0, 0
+    cyc = _LIVE["c"]
+    n_subjects = len(cyc.cycle.step.contact.objects)
+    guard = cyc.cycle.step.guard
+    good = TargetRecord(0, (0.20, 0.0, -0.13), 0.0, 1.0, True, True, 0, False, False)
+    for _ in range(3):  # a good record, tracked: what follows starts a new episode
+        _LIVE["t"] += 1e-3
+        _LIVE["seq"] += 1
+        good.seq, good.made_at = _LIVE["seq"], _LIVE["t"]
+        state = cyc.step(_LIVE["t"], np.append(good.pack(), math.nan))
+    if state[4] != GUARD_CODES["track"]:
+        return f"LiveCycle did not track a good record (guard code {state[4]})"
+    values = np.asarray(values, dtype=np.float64)
+    bad0 = guard.counts.get("bad_record", 0)
+    scene_record = _is_scene_record(values, n_subjects)
+    try:
+        for _ in range(ticks):
+            _LIVE["t"] += 1e-3
+            state = cyc.step(_LIVE["t"], np.append(values, math.nan))
+            if not np.all(np.isfinite(state)):
+                return f"LiveCycle's state turned non-finite on {values.tolist()}"
+            if not scene_record and state[4] != GUARD_CODES["hold"]:
+                name = {c: k for k, c in GUARD_CODES.items()}[int(state[4])]
+                return f"LiveCycle answered a record no scene step writes with '{name}', not hold: {values.tolist()}"
+    except Exception as exc:  # noqa: BLE001 - an exception in the servo process is the finding
+        return f"LiveCycle raised {type(exc).__name__}: {exc} on {values.tolist()}"
+    if not scene_record and guard.counts.get("bad_record", 0) != bad0 + 1:
+        return f"LiveCycle counted {guard.counts.get('bad_record', 0) - bad0} faults for a corrupt record, not 1"
+    if values.shape != (RECORD_SIZE,):
+        return f"bad test input of shape {values.shape}"
+    return None
+
+
+def _dev_live_record(rng):
+    from vishap.runtime.core import RECORD_SIZE, TargetRecord
+
+    kind = rng.random()
+    if kind < 0.25:
+        return check_live_record(np.zeros(RECORD_SIZE))
+    _LIVE["seq"] = _LIVE.get("seq", 0) + 1
+    t = _LIVE.get("t", 0.0) + 1e-3
+    rec = TargetRecord(_LIVE["seq"], tuple(0.02 * rng.standard_normal(3) + (0.2, 0.0, -0.13)), t, 0.9, True, True,
+                       int(rng.integers(-1, 1)), bool(rng.random() < 0.5), bool(rng.random() < 0.5),
+                       lost=bool(rng.random() < 0.3)).pack()
+    if kind < 0.85:  # a few fields made hostile
+        for i in rng.choice(RECORD_SIZE, size=int(rng.integers(1, 4)), replace=False):
+            rec[i] = _value(rng, rec[i] if rec[i] else 1.0)
+    elif kind < 0.95:
+        rec = np.array([_value(rng, 1.0) for _ in range(RECORD_SIZE)])
+    return check_live_record(rec)
+
+
 DEVICE = [
     Target("saturate", "device", device=_dev_saturate),
     Target("target_guard", "device", device=_dev_guard),
     Target("controller", "device", device=_dev_controller),
     Target("servo_loop", "device", device=_dev_servo),
+    Target("live_record", "device", device=_dev_live_record),
 ]
 TARGETS = LOADERS + DEVICE
 

@@ -202,7 +202,9 @@ def calibrate_stereo(left, right, board: Board, *, model: str = "k5", progress: 
     per_view = np.asarray(out[-1], dtype=np.float64).reshape(len(used), 2)
     if not np.isfinite(rms):
         raise CalibrationError("stereo calibration diverged (non-finite reprojection error)")
-    rig = StereoRig(image_size=size, K_left=K1, dist_left=D1, K_right=K2, dist_right=D2, R=R, T=T.reshape(3))
+    # the rig file records what the calibration was made from and how well it fits
+    rig = StereoRig(image_size=size, K_left=K1, dist_left=D1, K_right=K2, dist_right=D2, R=R, T=T.reshape(3),
+                    rms_px=float(rms), board=board.kind, board_size=(board.cols, board.rows), square_m=board.square_m)
     return StereoCalibration(rig, float(rms), len(used), len(left), per_view, (float(rms_l), float(rms_r)), used)
 
 

@@ -33,7 +33,7 @@ import numpy as np
 from vishap.robot.device import DeviceState
 from vishap.robot.kinematics import tip_state_scalar
 from vishap.robot.object_gain import ENGAGED, FREE, SURFACE
-from vishap.runtime.safety import TargetGuard
+from vishap.runtime.safety import TargetGuard, record_values_valid
 
 __all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "ServoStep", "ServoTick", "GUARD_CODES",
            "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
@@ -52,7 +52,9 @@ class TargetRecord:
     ``seq`` counts records (0: none yet); ``armed`` is false until the first finger estimate (or a
     calibration fault) arrives — until then the servo holds the arm where it is. ``subject`` is the
     index of the subject in the scene's objects (−1: none). ``finger``/``finger_velocity`` are the
-    world's estimate of the pad point at ``finger_t`` (NaN when it has none).
+    world's estimate of the pad point at ``finger_t`` (NaN when it has none). ``lost``: vision found
+    no fingertip in this frame (the guard holds at once). ``valid`` is not packed: :meth:`unpack`
+    sets it false for values no scene step writes (an all-zero record among them).
     """
 
     seq: int = 0
@@ -67,17 +69,24 @@ class TargetRecord:
     finger: tuple = _NAN3
     finger_velocity: tuple = _NAN3
     finger_t: float = math.nan
+    lost: bool = False
+    valid: bool = True
 
     def pack(self) -> np.ndarray:
         return np.array([self.seq, *self.X_ee, self.made_at, self.confidence, float(self.calibrated),
                          float(self.armed), self.subject, float(self.imminent), float(self.in_contact),
-                         *self.finger, *self.finger_velocity, self.finger_t], dtype=np.float64)
+                         *self.finger, *self.finger_velocity, self.finger_t, float(self.lost)], dtype=np.float64)
 
     @classmethod
-    def unpack(cls, a) -> TargetRecord:
+    def unpack(cls, a, n_subjects: int | None = None) -> TargetRecord:
+        """The record packed in ``a``; never raises on numbers: values no scene step writes (a counter
+        that is not a positive integer, a flag not 0/1, a subject not in −1..n_subjects−1) give
+        ``TargetRecord(valid=False)``."""
         v = [float(x) for x in a]
+        if len(v) != RECORD_SIZE or not record_values_valid(v[0], [v[i] for i in _FLAGS], v[8], n_subjects):
+            return cls(valid=False)
         return cls(int(v[0]), tuple(v[1:4]), v[4], v[5], v[6] > 0.5, v[7] > 0.5, int(v[8]), v[9] > 0.5,
-                   v[10] > 0.5, tuple(v[11:14]), tuple(v[14:17]), v[17])
+                   v[10] > 0.5, tuple(v[11:14]), tuple(v[14:17]), v[17], v[18] > 0.5)
 
     def finger_at(self, t: float):
         """The tracked pad point extrapolated to ``t`` and its velocity (NaN when unknown)."""
@@ -86,6 +95,7 @@ class TargetRecord:
 
 
 RECORD_SIZE = TargetRecord().pack().size
+_FLAGS = (6, 7, 9, 10, 18)  # calibrated, armed, imminent, in_contact, lost
 
 
 class SceneStep:
@@ -138,7 +148,7 @@ class SceneStep:
         self.seq += 1
         s, imminent, in_contact = self._flags
         self.record = TargetRecord(self.seq, X, float(t_sample), float(confidence), calibrated, self.armed,
-                                   s, imminent, in_contact, finger, v_f, t_f)
+                                   s, imminent, in_contact, finger, v_f, t_f, lost=not found)
         return self.record, inter, p_pad
 
 
@@ -301,9 +311,9 @@ class ServoStep:
         fault = None
         law = self.contact.law
         pressed = self._rendering and law is not None and law.depth(p_dev) > self.press_m
-        if rec.armed:
+        if rec.armed or not rec.valid:
             gx, gy, gz, action, fault = self.guard.decide_scalar(t, *rec.X_ee, rec.made_at, rec.confidence,
-                                                                 rec.calibrated, pressed)
+                                                                 rec.calibrated, pressed, rec.lost, rec.valid)
             X_ee = np.array((gx, gy, gz))
         else:
             action, X_ee = "idle", None

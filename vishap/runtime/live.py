@@ -8,8 +8,12 @@ period (simulated plants keep their own time consistent with the wall clock).
 
 The servo object is built *inside* the child by ``make_servo()`` (a picklable callable, e.g. a
 ``functools.partial`` of a module-level function) and must offer
-``step(t: float, target: ndarray) -> ndarray`` returning ``state_size`` floats, and may offer
+``step(t: float, target: ndarray | None) -> ndarray`` returning ``state_size`` floats, and may offer
 ``finish() -> object`` (called once after the loop; its result comes back in the report).
+``target`` is None until the producer's first write (the mailbox's own sequence number says so),
+so that a record that reads as zeros is never mistaken for "nothing yet": once anything was
+written, every value the servo object gets is something a producer wrote, and judging it is the
+servo object's task.
 """
 from __future__ import annotations
 
@@ -61,7 +65,9 @@ def _servo_main(make_servo, period, priority, cpu, target_name, target_size, sta
         clock = time.perf_counter
         while not stop.is_set():
             tick = timer.wait()
-            target, _ = targets.read()
+            target, written = targets.read()
+            if not written:
+                target = None
             c0 = clock()
             for _ in range(tick.periods):  # catch up after a host stall
                 t_sim += period

@@ -2,14 +2,20 @@
 
 Runs inside the 1 kHz servo tick, so its decision takes effect within one servo cycle. Input is
 the newest device target from the world (X_d in the robot frame, when it was made, the vision
-confidence) and whether a camera-to-robot calibration is loaded. Output is the target the
-controller may use and the action taken:
+confidence, whether vision reported the finger lost), whether a camera-to-robot calibration is
+loaded and whether the record carrying it was one a scene step could have written. Output is the
+target the controller may use and the action taken:
 
 - ``track``   the input is fresh, finite, confident and calibrated: use it (clamped to the box);
-- ``hold``    the input is stale, non-finite, stamped later than now (a clock fault) or the finger
-              is lost: keep the last good target;
+- ``hold``    the input is stale, non-finite, stamped later than now (a clock fault), the finger
+              is lost or the record is corrupt: keep the last good target;
 - ``retreat`` the trouble has lasted longer than ``retreat_after_s``, or there is no calibration:
               move to the retreat point, away from where a finger could be.
+
+Vision says "lost" explicitly (the frame gave no fingertip), and the guard holds on the first
+servo tick that sees it; the confidence floor only catches a track vision still reports but trusts
+little. Waiting for the tracker's confidence to decay below the floor cost about 4 frames (117 ms
+at 30 Hz) during which the device followed a coasting prediction of a finger nobody saw.
 
 A finger that vision loses while it presses the device is not gone: the device feels it (the
 caller says so with ``pressed``: the device pushed in under the subject's surface while the law
@@ -31,7 +37,7 @@ import numpy as np
 
 from vishap._core.errors import ConfigError
 
-__all__ = ["Fault", "GuardDecision", "TargetGuard"]
+__all__ = ["Fault", "GuardDecision", "TargetGuard", "record_values_valid"]
 
 
 class Fault(str, Enum):
@@ -41,6 +47,24 @@ class Fault(str, Enum):
     CALIBRATION_MISSING = "calibration_missing"
     FRAME_DROPPED = "frame_dropped"
     FUTURE_STAMP = "future_stamp"      # a target made later than the servo's now: clocks disagree
+    BAD_RECORD = "bad_record"          # a record no scene step writes (all zero, a counter that is not a count)
+
+
+def record_values_valid(seq: float, flags, subject: float, n_subjects: int | None = None) -> bool:
+    """Whether a target record's counter, flags and subject are values a scene step writes.
+
+    The scene step counts its records from 1, so a record that reads 0 (an all-zero block: a
+    producer that wrote nothing real, or memory cleared under the reader) is not one, and neither is
+    a counter or subject that is NaN, fractional or out of range, or a flag other than 0 or 1. The
+    channel's own sequence number says whether anything was written at all; this says whether what
+    was written can be trusted.
+    """
+    if not (1.0 <= seq <= 2.0**53 and seq == math.floor(seq)):
+        return False
+    if not all(f == 0.0 or f == 1.0 for f in flags):
+        return False
+    hi = math.inf if n_subjects is None else n_subjects - 1
+    return -1.0 <= subject <= hi and subject == math.floor(subject)
 
 
 @dataclass(frozen=True)
@@ -99,27 +123,42 @@ class TargetGuard:
             self._trouble_since = t
 
     def decide(self, t: float, X_d, made_at: float, confidence: float, calibrated: bool = True,
-               pressed: bool = False) -> GuardDecision:
-        """The target to use at time ``t`` given the newest input (see module docstring)."""
+               pressed: bool = False, *, lost: bool = False, valid: bool = True) -> GuardDecision:
+        """The target to use at time ``t`` given the newest input (see module docstring).
+
+        ``lost``: vision reported the finger lost in this input; ``valid``: false for a record no
+        scene step could have written (its content is then ignored)."""
         x = np.asarray(X_d, dtype=float).reshape(-1)
         if x.shape[0] != 3:
             x = np.full(3, np.nan)
         gx, gy, gz, action, fault = self.decide_scalar(
-            t, float(x[0]), float(x[1]), float(x[2]), float(made_at), float(confidence), calibrated, pressed
+            t, float(x[0]), float(x[1]), float(x[2]), float(made_at), float(confidence), calibrated, pressed,
+            lost, valid,
         )
         return GuardDecision(np.array((gx, gy, gz)), action, fault)
 
-    def decide_scalar(self, t, x, y, z, made_at, confidence, calibrated=True, pressed=False):
-        """:meth:`decide` on plain floats for the 1 kHz hot path: ``(x, y, z, action, fault)``."""
+    def decide_scalar(self, t, x, y, z, made_at, confidence, calibrated=True, pressed=False, lost=False, valid=True):
+        """:meth:`decide` on plain floats for the 1 kHz hot path: ``(x, y, z, action, fault)``.
+
+        The order of the tests matters: a corrupt record says nothing; a stale, future-stamped or
+        unstamped input is a fault of the system (its retreat timer runs even while the device is
+        pressed), checked before the finger's own state, so that a lost finger cannot hide a
+        stalled vision process."""
         isfinite = math.isfinite
-        if not calibrated:
+        if not valid:
+            fault = Fault.BAD_RECORD
+        elif not calibrated:
             fault = Fault.CALIBRATION_MISSING
-        elif not (isfinite(x) and isfinite(y) and isfinite(z) and isfinite(made_at) and isfinite(confidence)):
+        elif not isfinite(made_at):
             fault = Fault.NAN_INPUT
         elif made_at > t:
             fault = Fault.FUTURE_STAMP
         elif t - made_at > self.stale_after_s:
             fault = Fault.VISION_STALLED
+        elif lost:
+            fault = Fault.FINGER_LOST
+        elif not (isfinite(x) and isfinite(y) and isfinite(z) and isfinite(confidence)):
+            fault = Fault.NAN_INPUT
         elif confidence < self.min_confidence:
             fault = Fault.FINGER_LOST
         else:

@@ -9,9 +9,14 @@ Files are OpenCV FileStorage YAML (what ``cv2.FileStorage`` writes) with the nod
 ``image_size`` (``[width, height]``; also written as OpenCV's ``image_width``, ``image_height``), ``K1``,
 ``D1``, ``K2``, ``D2``, ``R``, ``T`` and the rectification ``R1``, ``R2``, ``P1``, ``P2``, ``Q``
 (all required in a file; the constructor computes the rectification with ``cv2.stereoRectify``
-when it is not given), and optionally ``rms_px`` (the stereo calibration's RMS reprojection error)
-and ``board`` (the calibration target). The names OpenCV's stereo sample writes, ``M1``/``M2`` for
-``K1``/``K2``, are read as well, also from its two files concatenated. Files are parsed by
+when it is not given), and optionally what the calibration was made from and how well it fits:
+``rms_px`` (the stereo RMS reprojection error, pixels), ``board`` (the target's kind, e.g.
+``chessboard``), ``board_width``, ``board_height`` (its pattern size: inner corners of a chessboard,
+squares of a ChArUco board) and ``square_size`` (metres) — the last three under the names OpenCV's
+calibration sample writes. ``vishap calibrate stereo`` writes them all. The names OpenCV's stereo
+sample (``stereo_calib.cpp``) writes, ``M1``/``M2`` for ``K1``/``K2``, are read as well, also from
+its two files (``intrinsics.yml``: M1 D1 M2 D2; ``extrinsics.yml``: R T R1 R2 P1 P2 Q)
+concatenated; the sample writes no image size, so such a file needs an ``image_size`` line. Files are parsed by
 :mod:`vishap._core.filestorage`, never by cv2's reader, and every value is checked for range and
 consistency (rotations, ``R2·R = R1``, ``Q`` agreeing with ``P1``/``P2``) before use.
 """
@@ -38,7 +43,10 @@ _DIST_LENGTHS = (4, 5, 8, 12, 14)
 _RECT_FIELDS = {"R1": (3, 3), "R2": (3, 3), "P1": (3, 4), "P2": (3, 4), "Q": (4, 4)}
 #: File nodes: ours first, then the names OpenCV's stereo_calib sample writes.
 _MATRIX_NODES = {"K1": ("K1", "M1"), "D1": ("D1",), "K2": ("K2", "M2"), "D2": ("D2",), "R": ("R",), "T": ("T",)}
-_OTHER_NODES = {"image_size", "image_width", "image_height", "rms_px", "board"}
+_OTHER_NODES = {"image_size", "image_width", "image_height", "rms_px", "board", "board_width", "board_height",
+                "square_size"}
+_MAX_BOARD_SIDE = 1000  # corners or squares along one side of a calibration target
+_SQUARE_RANGE_M = (1e-4, 1.0)
 _MAX_IMAGE_SIDE = 100_000  # pixels
 _FOCAL_RANGE = (0.01, 1000.0)  # focal length / longer image side: fields of view of 179.4° … 0.06°
 _MAX_DISTORTION = 1e4  # |coefficient|; real rational models stay below a few hundred
@@ -90,6 +98,8 @@ class StereoRig:
     Q: np.ndarray | None = None
     rms_px: float | None = None
     board: str | None = None
+    board_size: tuple[int, int] | None = None   # (width, height): inner corners / squares
+    square_m: float | None = None
     _maps: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -117,7 +127,20 @@ class StereoRig:
                 raise ConfigError(f"expected a reprojection error in [0, 1000) pixels, got {self.rms_px}",
                                   field="rms_px")
         if self.board is not None and not isinstance(self.board, str):
-            raise ConfigError(f"expected text such as '9x6 chessboard 25 mm', got {self.board!r}", field="board")
+            raise ConfigError(f"expected text such as 'chessboard', got {self.board!r}", field="board")
+        if self.board_size is not None:
+            size = tuple(self.board_size) if isinstance(self.board_size, (tuple, list)) else ()
+            if len(size) != 2:
+                raise ConfigError(f"expected (width, height), got {self.board_size!r}", field="board_width")
+            for name, v in zip(("board_width", "board_height"), size):
+                if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 2 <= v <= _MAX_BOARD_SIDE:
+                    raise ConfigError(f"expected a whole number in 2..{_MAX_BOARD_SIDE}, got {v!r}", field=name)
+            self.board_size = (int(size[0]), int(size[1]))
+        if self.square_m is not None:
+            self.square_m = float(self.square_m)
+            if not (math.isfinite(self.square_m) and _SQUARE_RANGE_M[0] <= self.square_m <= _SQUARE_RANGE_M[1]):
+                raise ConfigError(f"expected a square side of {_SQUARE_RANGE_M[0]}..{_SQUARE_RANGE_M[1]} m, "
+                                  f"got {self.square_m}", field="square_size")
         given = [getattr(self, k) is not None for k in _RECT_FIELDS]
         if any(given) and not all(given):
             missing = [k for k, g in zip(_RECT_FIELDS, given) if not g]
@@ -156,10 +179,13 @@ class StereoRig:
         if not np.allclose(self.Q, Q, rtol=1e-6, atol=1e-9):
             raise ConfigError("does not agree with P1 and P2 (expected cv2.stereoRectify's Q)", field="Q")
 
-    def with_calibration_info(self, *, rms_px: float | None = None, board: str | None = None) -> "StereoRig":
-        """A copy that also records the calibration's RMS reprojection error and its board."""
+    def with_calibration_info(self, *, rms_px: float | None = None, board: str | None = None,
+                              board_size: tuple[int, int] | None = None, square_m: float | None = None) -> "StereoRig":
+        """A copy that also records the calibration's RMS reprojection error and its board (kind,
+        pattern size, square side)."""
         return StereoRig(self.image_size, self.K_left, self.dist_left, self.K_right, self.dist_right, self.R, self.T,
-                         self.R1, self.R2, self.P1, self.P2, self.Q, rms_px=rms_px, board=board)
+                         self.R1, self.R2, self.P1, self.P2, self.Q, rms_px=rms_px, board=board, board_size=board_size,
+                         square_m=square_m)
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -353,6 +379,11 @@ class StereoRig:
             fs.write("rms_px", float(self.rms_px))
         if self.board is not None:
             fs.write("board", str(self.board))
+        if self.board_size is not None:
+            fs.write("board_width", int(self.board_size[0]))
+            fs.write("board_height", int(self.board_size[1]))
+        if self.square_m is not None:
+            fs.write("square_size", float(self.square_m))
         return fs.releaseAndGetString()
 
     def save(self, path: str | os.PathLike) -> Path:
@@ -367,7 +398,8 @@ class StereoRig:
         unknown = sorted(set(nodes) - _OTHER_NODES - set(_RECT_FIELDS) - {n for v in _MATRIX_NODES.values() for n in v})
         if unknown:
             raise ConfigError("unknown node; a rig file holds image_size, K1 D1 K2 D2 R T R1 R2 P1 P2 Q "
-                              "(M1/M2 for K1/K2), rms_px, board", file=path, field=unknown[0])
+                              "(M1/M2 for K1/K2), rms_px, board, board_width, board_height, square_size",
+                              file=path, field=unknown[0])
         size = _read_size(nodes, path)
         mats = {}
         for name, aliases in _MATRIX_NODES.items():
@@ -384,12 +416,23 @@ class StereoRig:
                 raise ConfigError("missing", file=path, field=name)
             rect[name] = _node_matrix(nodes, name, path)
         extra = {}
-        if "rms_px" in nodes:
-            extra["rms_px"] = nodes["rms_px"]
-            if isinstance(extra["rms_px"], bool) or not isinstance(extra["rms_px"], (int, float)):
-                raise ConfigError(f"expected a number of pixels, got {extra['rms_px']!r}", file=path, field="rms_px")
+        for name, key in (("rms_px", "rms_px"), ("square_size", "square_m")):
+            if name in nodes:
+                v = nodes[name]
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise ConfigError(f"expected a number, got {v!r}", file=path, field=name)
+                extra[key] = v
         if "board" in nodes:
             extra["board"] = nodes["board"]
+        pattern = [k for k in ("board_width", "board_height") if k in nodes]
+        if len(pattern) == 1:
+            missing = ({"board_width", "board_height"} - set(pattern)).pop()
+            raise ConfigError("missing (the pattern size needs board_width and board_height)", file=path, field=missing)
+        if pattern:
+            for k in pattern:
+                if isinstance(nodes[k], bool) or not isinstance(nodes[k], int):
+                    raise ConfigError(f"expected a whole number, got {nodes[k]!r}", file=path, field=k)
+            extra["board_size"] = (nodes["board_width"], nodes["board_height"])
         try:
             return cls(
                 image_size=size, K_left=mats["K1"], dist_left=mats["D1"], K_right=mats["K2"],
@@ -410,7 +453,8 @@ class StereoRig:
         if self.image_size != other.image_size:
             return False
         a, b = self._arrays(), other._arrays()
-        return all(np.array_equal(a[k], b[k]) for k in a) and (self.rms_px, self.board) == (other.rms_px, other.board)
+        info = ("rms_px", "board", "board_size", "square_m")
+        return all(np.array_equal(a[k], b[k]) for k in a) and all(getattr(self, k) == getattr(other, k) for k in info)
 
     def summary(self) -> dict:
         """A JSON-ready description of the rig."""
@@ -424,6 +468,8 @@ class StereoRig:
             "distortion": bool(np.any(self.dist_left) or np.any(self.dist_right)),
             "rms_px": self.rms_px,
             "board": self.board,
+            "board_size": None if self.board_size is None else list(self.board_size),
+            "square_m": self.square_m,
         }
 
 
