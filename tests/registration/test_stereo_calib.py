@@ -73,7 +73,7 @@ def test_calibrate_stereo_writes_image_size_rms_and_board_into_a_group_readable_
     old = os.umask(0o022)
     try:
         assert main(["calibrate", "stereo", "--left", str(tmp_path / "l*.png"), "--right", str(tmp_path / "r*.png"),
-                     "--board", "9x6", "--square", str(square), "--out", str(out)]) == 0
+                     "--board", "9x6", "--square", str(square), "--out", str(out), "--json"]) == 0
     finally:
         os.umask(old)
     rec = json.loads(capsys.readouterr().out)
