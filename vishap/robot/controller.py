@@ -115,8 +115,10 @@ class Controller:
         self.set_gains(gains)
         self.set_gravity(params)
         self.set_lambda(None)
-        #: multiplies the PD and law force (not gravity compensation): the object-gain scheduler's
-        #: force ramp (vishap.robot.object_gain); 1 leaves the controller as it was
+        #: the object-gain scheduler's force ramp (vishap.robot.object_gain), 0…1: the PD and law force
+        #: (not gravity compensation) enter with this weight, and the force the controller gave when the
+        #: ramp (re)started fades out with the rest (1 − force_scale), so a restart is a blend, never a
+        #: step; 1 leaves the controller as it was
         self.force_scale = 1.0
         self.reset()
 
@@ -202,6 +204,8 @@ class Controller:
         self.F_cmd = (0.0, 0.0, 0.0)
         self.F_gc = (0.0, 0.0, 0.0)
         self.F_pd = (0.0, 0.0, 0.0)
+        self._F_from = (0.0, 0.0, 0.0)  # the force held when the force ramp last restarted
+        self._scale_prev = 1.0
         self.p = (0.0, 0.0, 0.0)
         self.v = (0.0, 0.0, 0.0)
         self._kq = None  # Kalman state per joint: (q̂1, q̂2, q̂3, ŵ1, ŵ2, ŵ3)
@@ -327,8 +331,15 @@ class Controller:
         # ramp-up of everything but gravity compensation
         el = t - self._t0
         s = 1.0 if el >= self._ramp else (el / self._ramp if el > 0.0 else 0.0)
-        s *= self.force_scale
-        Fx, Fy, Fz = s * (fpx + fx), s * (fpy + fy), s * (fpz + fz)
+        fs = self.force_scale
+        if fs < self._scale_prev:  # the ramp restarted: what was commanded fades out as the new force fades in
+            self._F_from = self.F_pd
+        self._scale_prev = fs
+        Fx, Fy, Fz = s * fs * (fpx + fx), s * fs * (fpy + fy), s * fs * (fpz + fz)
+        if fs < 1.0:
+            w = 1.0 - fs
+            hx, hy, hz = self._F_from
+            Fx, Fy, Fz = Fx + w * hx, Fy + w * hy, Fz + w * hz
         self.F_pd = (Fx, Fy, Fz)
         # Eq. 6–7: F_GC = J⁻ᵀ τ_g (τ_g1 = 0, so no tangential part)
         det2 = ja * jd - jb * jc
