@@ -128,3 +128,27 @@ def test_the_surface_handover_starts_before_a_predicted_touch_and_a_resume_in_co
     acts = ["track"] * 200 + ["hold"] * 100 + ["track"] * 50
     _, sc, states = _run(s2, np.full(len(acts), 0.002), actions=acts)
     assert states[299] != FREE and np.all(sc[150:] == 1.0)  # held and resumed on the finger: no force dip
+
+
+def test_a_restarted_force_ramp_blends_from_the_held_force_without_a_step():
+    """Resuming tracking after a hold restarts the scale at 0: the force the controller was giving fades
+    out as the new one fades in (a scale that simply fell to 0 dropped a 0.9 N hold force in one tick)."""
+    ctrl = Controller()
+    args = (0.0, 0.5, 0.3, 0.0, 0.0, 0.0)  # a still arm
+    for k in range(600):  # tracking, ramped up, pulled 1 mm off its target: ≈ 0.8 N
+        ctrl.compute(k * DT, *args, 0.226, 0.0, -0.17)
+    held = np.array(ctrl.F_pd)
+    assert np.linalg.norm(held) > 0.5
+    sch = ObjectGainScheduler(dt=DT, force_ramp_s=0.1)
+    sch.set_subject((0.0, 0.0, 0.0), None)
+    F = [held]
+    for i, a in enumerate(["track"] * 5 + ["hold"] * 20 + ["track"] * 150):  # resume toward a target 20 mm off
+        _, s = sch.step(i * DT, -0.02, False, False, a)
+        ctrl.force_scale = s
+        ctrl.compute(0.6 + i * DT, *args, 0.245 if i >= 25 else 0.226, 0.0, -0.17)
+        F.append(np.array(ctrl.F_pd))
+    F = np.array(F)
+    steps = np.linalg.norm(np.diff(F, axis=0), axis=1)
+    assert steps.max() < 0.5  # issue 16: ≤ 0.5 N per tick (dropping the held force was one step of |held|)
+    assert np.allclose(F[26], held, atol=0.02)  # at the restart the force is still the held one
+    assert np.linalg.norm(F[-1] - held) > 5.0  # and the new command has taken over after the ramp

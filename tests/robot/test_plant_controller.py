@@ -167,11 +167,13 @@ def test_a_device_outside_the_workspace_is_pushed_back_not_only_its_target():
     assert p[0] > ctrl.limits.workspace_max[0]
     # Λ = 0 (the law has the device) and the target where the device is: only the workspace wall acts
     ctrl.set_lambda((0.0, 0.0, 0.0))
-    ctrl.compute(0.0, *q, 0.0, 0.0, 0.0, *p)
-    assert ctrl.F_pd[0] < -1.0 and ctrl.n_outside == 1
-    # inside the box nothing is added
-    ctrl.compute(0.001, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, *fk(np.zeros(3)))
-    assert ctrl.F_pd == pytest.approx((0.0, 0.0, 0.0), abs=1e-12) and ctrl.n_outside == 1
+    for k in range(10):
+        ctrl.compute(k * 1e-3, *q, 0.0, 0.0, 0.0, *p)
+    assert ctrl.F_pd[0] < -1.0 and ctrl.n_outside == 10
+    # back inside the box the wall's force is let go (at its rate), then nothing is added
+    for k in range(10, 30):
+        ctrl.compute(k * 1e-3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, *fk(np.zeros(3)))
+    assert ctrl.F_pd == pytest.approx((0.0, 0.0, 0.0), abs=1e-12) and ctrl.n_outside == 10
 
 
 def test_coulomb_friction_at_the_tip_is_about_the_data_sheet_figure():
@@ -273,10 +275,11 @@ def test_crossing_the_workspace_boundary_at_speed_is_no_force_step():
     ctrl.set_lambda((0.0, 0.0, 0.0))  # only the workspace wall acts
     y_max = ctrl.limits.workspace_max[1]
     F = []
-    for k, y in enumerate(np.linspace(y_max - 0.0005, y_max + 0.0005, 11)):  # 0.5 m/s outward along y
+    for k, y in enumerate(np.linspace(y_max - 0.0006, y_max + 0.006, 12)):  # 0.6 m/s outward along y
         q = ik(np.array([0.2, y, -0.12]))
         J = kin.jacobian(q)
-        w = np.linalg.solve(J, [0.0, 0.5, 0.0])
+        w = np.linalg.solve(J, [0.0, 0.6, 0.0])
         ctrl.compute(k * 1e-3, *q, *w, *fk(q))
         F.append(ctrl.F_pd[1])
-    assert max(abs(np.diff(F))) < 0.5 and F[-1] < 0.0
+    # spring and damping alone would step by 0.66 N a tick here; the wall's force is rate-limited
+    assert max(abs(np.diff(F))) <= 0.25 + 1e-12 and F[-1] < -2.0

@@ -124,3 +124,68 @@ def test_servo_step_holds_a_pressed_device_while_vision_has_lost_the_finger_and_
     actions = [step.tick(k * 1e-3, seen(k, 0.0)).action for k in range(1600, 2100)]
     assert actions[0] == "hold" and actions[-1] == "retreat"
     assert 300 <= actions.index("retreat") <= 400  # 0.3 s after the device is let go (it rises out first)
+
+
+def test_the_renderer_holds_a_device_above_the_surface_there_while_it_renders_the_surface():
+    scene = load_scene("wall")
+    c = ContactRenderer(scene.objects, max_force_n=8.5)
+    z0 = np.zeros(3)
+    top = scene.objects[0].centre[2]
+    assert c.update(0.0, np.array([0.2, 0.0, top + 0.0005]), z0, 0, True, False, "track")[0] is None
+    assert c.F_hold is None  # free motion: the position servo holds the device, not the renderer
+    c.update(0.001, np.array([0.2, 0.0, top - 0.0002]), z0, 0, True, False, "track")  # dipped in: surface
+    assert c.state_code == 1
+    F, _, _ = c.update(0.002, np.array([0.2, 0.0, top + 0.0002]), z0, 0, True, False, "track")
+    assert F is None and c.F_hold[2] == pytest.approx(-800.0 * 0.0002)  # pulled back with the wall's own spring
+    _, _, _ = c.update(0.003, np.array([0.2, 0.0, top + 0.0002]), np.array([0.0, 0.0, 0.05]), 0, True, False, "track")
+    assert c.F_hold[2] == pytest.approx(-800.0 * 0.0002 - 2.0 * 0.05)  # and its damping, moving away
+    c.update(0.004, np.array([0.2, 0.0, top + 1e-7]), z0, 0, True, False, "track")
+    assert abs(c.F_hold[2]) < 1e-3  # continuous with the law at the surface
+    c.update(0.005, np.array([0.2, 0.0, top + 0.0009]), z0, 0, True, False, "track")
+    assert -800.0 * 0.0005 < c.F_hold[2] < 0.0  # fading out before the release height: no step there
+    c.update(0.006, np.array([0.2, 0.0, top + 0.0002]), z0, 0, False, False, "track")
+    assert c.state_code == 0 and c.F_hold is None  # the interaction is over: free, the servo holds again
+
+
+class _LandingFinger:
+    """A finger that comes down at 20 mm/s, stops on the face and then presses at 2 mm/s."""
+
+    finger_dir = (0.0, 0.0, -1.0)
+
+    def __init__(self, top):
+        self.top = top
+
+    def pad(self, t, rec):
+        if t < 1.0:
+            h, v = max(0.0, 0.010 - 0.02 * max(t - 0.5, 0.0)), (-0.02 if 0.5 < t < 1.0 else 0.0)
+        else:
+            h, v = -0.002 * (t - 1.0), -0.002
+        return self.top + np.array([0.0, 0.0, h]), np.array([0.0, 0.0, v if h > 0 or t >= 1.0 else 0.0])
+
+
+def test_a_finger_landing_on_the_encoder_device_makes_contact_once():
+    """Contact makes once (the demos had 3–17 makes in a touch): the simulated finger touches the device
+    where it is, not where its encoders say (their 30 µm steps had made the pad force itself chatter)."""
+    from vishap.apps.cycle import ServoCycle
+    from vishap.apps.log import SignalLog
+    from vishap.robot import kinematics
+    from vishap.runtime.assembly import make_servo_step, open_device
+
+    scene = load_scene("wall")
+    obj = scene.objects[0]
+    dev = open_device("sim", passive_object=scene.passive_object.for_mujoco(), substeps=10, sensor="encoder")
+    step = make_servo_step(dev, scene)
+    X = tuple(obj.centre - step.mount)
+    dev.reset(kinematics.ik(np.asarray(X)))
+    finger = _LandingFinger(np.asarray(obj.centre, float))
+    log = SignalLog()
+    cyc = ServoCycle(step, scene_object=obj, log=log, finger=finger, half_size_m=scene.passive_object.half_size_m)
+    for k in range(1400):
+        t = k * 1e-3
+        p, v = finger.pad(t, None)
+        cyc.servo(t, TargetRecord(k + 1, X, t, 1.0, True, True, 0, t > 0.3, t > 1.0, tuple(p), tuple(v), t))
+    sv = log.channel("servo").arrays()
+    ic = np.asarray(sv["in_contact"], bool)
+    assert ic[-1] and int(np.count_nonzero(np.diff(ic.astype(int)) == 1)) == 1
+    assert 0.0 < float(sv["F_contact"][-1][2]) < 2.0  # pressed 0.8 mm into the wall: the law pushes back
+

@@ -150,6 +150,7 @@ class ServoCycle:
         self.n = np.asarray(scene_object.normal, float)
         self.finger = finger
         self.pad_force = pad_force(scene_object, half_size_m) if finger is not None else None
+        self._true_tip = getattr(step.device, "true_tip_state", None)  # a simulated device's own state
         self.tactile_renderer = tactile
         self.log = log
         self.stats = {"force_over_limit": 0, "nonfinite_commands": 0}
@@ -164,7 +165,9 @@ class ServoCycle:
         dev, p_dev = step.read()
         if self.finger is not None:
             pad, v_pad = self.finger.pad(t, rec)
-            F_on_dev = (self.pad_force(pad, v_pad, p_dev, dev.v_robot) if np.all(np.isfinite(pad))
+            # the finger touches the device where it is, not where its encoders say it is
+            p_phys, v_phys = (self._true_tip() if self._true_tip is not None else (dev.p_robot, dev.v_robot))
+            F_on_dev = (self.pad_force(pad, v_pad, p_phys + step.mount, v_phys) if np.all(np.isfinite(pad))
                         else np.zeros(3))
             step.device.apply_tip_force(F_on_dev)
         else:

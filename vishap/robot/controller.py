@@ -41,6 +41,10 @@ __all__ = ["Gains", "Controller", "kalman_velocity_gains", "WORKSPACE_STIFFNESS_
 WORKSPACE_STIFFNESS_N_M = 500.0
 WORKSPACE_DAMPING_N_S_M = 5.0
 WORKSPACE_DAMPING_RAMP_M = 0.005
+#: the most the wall's force may change in one tick (N): crossing the box at the travel limiter's
+#: 0.6 m/s, the spring and the fading-in damping alone would change it by 0.66 N a tick (issue 16: no
+#: step > 0.5 N outside contact); at 0.25 N a tick the arm, coasting out at 0.6 m/s, stops 6.5 mm outside
+WORKSPACE_MAX_STEP_N = 0.25
 
 
 def kalman_velocity_gains(dt: float, bandwidth_hz: float) -> tuple[float, float, float]:
@@ -115,8 +119,10 @@ class Controller:
         self.set_gains(gains)
         self.set_gravity(params)
         self.set_lambda(None)
-        #: multiplies the PD and law force (not gravity compensation): the object-gain scheduler's
-        #: force ramp (vishap.robot.object_gain); 1 leaves the controller as it was
+        #: the object-gain scheduler's force ramp (vishap.robot.object_gain), 0…1: the PD and law force
+        #: (not gravity compensation) enter with this weight, and the force the controller gave when the
+        #: ramp (re)started fades out with the rest (1 − force_scale), so a restart is a blend, never a
+        #: step; 1 leaves the controller as it was
         self.force_scale = 1.0
         self.reset()
 
@@ -202,10 +208,13 @@ class Controller:
         self.F_cmd = (0.0, 0.0, 0.0)
         self.F_gc = (0.0, 0.0, 0.0)
         self.F_pd = (0.0, 0.0, 0.0)
+        self._F_from = (0.0, 0.0, 0.0)  # the force held when the force ramp last restarted
+        self._scale_prev = 1.0
         self.p = (0.0, 0.0, 0.0)
         self.v = (0.0, 0.0, 0.0)
         self._kq = None  # Kalman state per joint: (q̂1, q̂2, q̂3, ŵ1, ŵ2, ŵ3)
         self._box = None  # boxcar of the target: ring buffer, running sums, index
+        self._Fw = None  # the workspace wall's force on the last tick (None: none)
         self.target = None
         self.target_clamped = False
         self.saturated = False
@@ -317,18 +326,37 @@ class Controller:
         wx = (lo[0] - px if px < lo[0] else (hi[0] - px if px > hi[0] else 0.0))
         wy = (lo[1] - py if py < lo[1] else (hi[1] - py if py > hi[1] else 0.0))
         wz = (lo[2] - pz if pz < lo[2] else (hi[2] - pz if pz > hi[2] else 0.0))
-        if wx or wy or wz:
-            self.n_outside += 1
+        if wx or wy or wz or self._Fw is not None:
+            if wx or wy or wz:
+                self.n_outside += 1
             kw, bw, rw = WORKSPACE_STIFFNESS_N_M, WORKSPACE_DAMPING_N_S_M, 1.0 / WORKSPACE_DAMPING_RAMP_M
             # the damping fades in over the first WORKSPACE_DAMPING_RAMP_M outside (the spring starts at zero)
-            fpx += kw * wx - (bw * min(1.0, abs(wx) * rw) * vx if vx * wx < 0.0 else 0.0)
-            fpy += kw * wy - (bw * min(1.0, abs(wy) * rw) * vy if vy * wy < 0.0 else 0.0)
-            fpz += kw * wz - (bw * min(1.0, abs(wz) * rw) * vz if vz * wz < 0.0 else 0.0)
+            ax = kw * wx - (bw * min(1.0, abs(wx) * rw) * vx if vx * wx < 0.0 else 0.0)
+            ay = kw * wy - (bw * min(1.0, abs(wy) * rw) * vy if vy * wy < 0.0 else 0.0)
+            az = kw * wz - (bw * min(1.0, abs(wz) * rw) * vz if vz * wz < 0.0 else 0.0)
+            # and the wall's force changes by at most WORKSPACE_MAX_STEP_N a tick, on the way in and out
+            ox, oy, oz = self._Fw or (0.0, 0.0, 0.0)
+            dx, dy, dz = ax - ox, ay - oy, az - oz
+            dn = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if dn > WORKSPACE_MAX_STEP_N:
+                k = WORKSPACE_MAX_STEP_N / dn
+                ax, ay, az = ox + k * dx, oy + k * dy, oz + k * dz
+            self._Fw = None if ax == 0.0 and ay == 0.0 and az == 0.0 else (ax, ay, az)
+            fpx += ax
+            fpy += ay
+            fpz += az
         # ramp-up of everything but gravity compensation
         el = t - self._t0
         s = 1.0 if el >= self._ramp else (el / self._ramp if el > 0.0 else 0.0)
-        s *= self.force_scale
-        Fx, Fy, Fz = s * (fpx + fx), s * (fpy + fy), s * (fpz + fz)
+        fs = self.force_scale
+        if fs < self._scale_prev:  # the ramp restarted: what was commanded fades out as the new force fades in
+            self._F_from = self.F_pd
+        self._scale_prev = fs
+        Fx, Fy, Fz = s * fs * (fpx + fx), s * fs * (fpy + fy), s * fs * (fpz + fz)
+        if fs < 1.0:
+            w = 1.0 - fs
+            hx, hy, hz = self._F_from
+            Fx, Fy, Fz = Fx + w * hx, Fy + w * hy, Fz + w * hz
         self.F_pd = (Fx, Fy, Fz)
         # Eq. 6–7: F_GC = J⁻ᵀ τ_g (τ_g1 = 0, so no tangential part)
         det2 = ja * jd - jb * jc

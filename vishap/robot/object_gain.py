@@ -29,12 +29,14 @@ a change to ``FREE`` because the guard retreats or the interaction ended, which 
 Each change blends linearly from the Λ in force at that tick to the new one over ``ramp_s``
 (≥ 20 ms); a change during a blend starts from where the blend is.
 
-The force scale multiplies the servo's PD and law force (never the gravity compensation). It is 0
+The force scale weighs the servo's PD and law force (never the gravity compensation). It is 0
 while the guard is idle (no finger seen yet), and restarts from 0 each time the guard starts or
 resumes tracking in free motion (after a hold or a retreat), rising linearly to 1 over ``force_ramp_s``, so the
-error built up against a target that jumped meanwhile is never delivered as a step. During a hold
-or retreat it keeps rising to 1 (the device must hold or leave). Resetting the travel limiter at
-the device's own position on resuming (``TravelLimiter.reset``) removes the rest of the jump.
+error built up against a target that jumped meanwhile is never delivered as a step. The controller
+blends: the force it was giving when the scale restarted fades out with ``1 − scale`` as the new
+one fades in (``Controller.force_scale``), so the restart itself is no step either (a scale that
+simply fell to 0 dropped the held force, 0.9–1.0 N in the wall demos, in one tick). During a hold
+or retreat it keeps rising to 1 (the device must hold or leave).
 
 The servo step calls it once per tick, after the world's contact rendering::
 

@@ -248,6 +248,14 @@ class MujocoPlant(Device):
         mujoco.mj_forward(m, d)
         return ev
 
+    def true_tip_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """The tip's true position (m) and velocity (m/s), robot frame, from MuJoCo's joint state — what
+        a simulated finger touches, whatever the sensor model reads (``read`` is the encoder's view)."""
+        a, b, c = self._qpos.tolist()
+        wa, wb, wc = self._qvel.tolist()
+        q = (a, b, b + c)
+        return kinematics.fk(q, self.params), kinematics.jacobian(q, self.params) @ np.array((wa, wb, wb + wc))
+
     def tip_position(self) -> np.ndarray:
         """Tip site position from MuJoCo (m, robot frame) — an independent check of :func:`fk`."""
         return self.data.site_xpos[self._site_tip].copy()

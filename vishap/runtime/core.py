@@ -43,6 +43,8 @@ GUARD_CODES = {"track": 0, "hold": 1, "retreat": 2, "idle": 3}
 #: the object gain's state as logged (``servo/lambda_state``)
 LAMBDA_CODES = {FREE: 0, SURFACE: 1, ENGAGED: 2}
 _NAN3 = (math.nan, math.nan, math.nan)
+#: depth at which a law's stiffness at its surface is read (m): inside every law's first spring
+_HOLD_PROBE_M = 1e-5
 
 
 @dataclass
@@ -160,6 +162,15 @@ class ContactRenderer:
     tracking starts). The law acts while the scheduler renders the surface (an interaction is
     announced, the guard tracks or holds, the device has gone under the surface) and the device is
     under it. A law is reset when its object stops being the subject and when contact rendering ends.
+
+    While Λ releases the normal axis (surface or engaged) and the device is *above* the surface,
+    nothing else would hold it there: the law only pushes out, the position servo no longer acts
+    along the normal, and the light arm floats off (the law's own push launched it 1–6 mm above
+    the surface in the demos, flipping Λ back to free and back, and a landing finger met a loose
+    device that bounced off its pad). The renderer then holds the device at the surface from above
+    with the law's own stiffness and damping at the surface (:attr:`F_hold`, pulling only, fading
+    out over the last half of ``release_m``), so the face waits exactly at the virtual surface,
+    the force is continuous across it and a finger lands on a device that is held.
     """
 
     def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003, dt: float = 0.001):
@@ -171,6 +182,10 @@ class ContactRenderer:
         self.gain = ObjectGainScheduler(engage_m=engage_m, dt=dt)
         self.subject = -1
         self.depth = math.nan  # the device's depth under the subject's surface at the last update (m)
+        #: each law's stiffness and damping at its surface: the hold above it
+        self._hold = [(law.normal_force(_HOLD_PROBE_M) / _HOLD_PROBE_M, float(getattr(law, "c", 0.0)))
+                      for law in self.laws]
+        self.F_hold = None  # the hold's force (robot frame, N) at the last update, or None
 
     def reset(self) -> None:
         for law in self.laws:
@@ -179,6 +194,7 @@ class ContactRenderer:
         self.gain.set_subject(None)
         self.subject = -1
         self.depth = math.nan
+        self.F_hold = None
 
     @property
     def law(self):
@@ -210,6 +226,16 @@ class ContactRenderer:
         F = law.force_robot(p_device, v_device) if gain.law_active else None
         if law is not None and not was_free and gain.state == FREE:
             law.reset()
+        self.F_hold = None
+        rel = gain.release_m
+        if F is None and gain.state != FREE and -rel < depth <= 0.0:
+            k, c = self._hold[self.subject]
+            n = law.normal
+            vn = float(n[0] * v_device[0] + n[1] * v_device[1] + n[2] * v_device[2])
+            w = min(1.0, 2.0 * (rel + depth) / rel)  # 1 down to −release_m/2, then fading to 0 at −release_m
+            f = min(0.0, (k * depth - c * vn) * w)  # pulls toward the surface only
+            if f < 0.0:
+                self.F_hold = (float(n[0]) * f, float(n[1]) * f, float(n[2]) * f)
         return F, L, scale
 
 
@@ -335,6 +361,7 @@ class ServoStep:
         else:
             key = self._key
         self._key, self.last_action = key, action
-        self.servo.tick(t, None if key is None else X_ee, F_law, t_sample=key, finger_m=finger_m)
+        extra = F_law if F_law is not None else self.contact.F_hold
+        self.servo.tick(t, None if key is None else X_ee, extra, t_sample=key, finger_m=finger_m)
         return ServoTick(action, X_ee, F_law, dev, p_dev, fault, self.contact.state_code, scale, finger_m, pressed,
                          touch_in)
