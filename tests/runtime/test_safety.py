@@ -141,8 +141,8 @@ def test_record_values_valid(seq, flags, subject, n, ok):
 
 
 def test_vision_losing_the_finger_reaches_the_guard_in_the_record_and_holds_on_the_next_tick():
-    """Scene step → record → servo step: the frame without a fingertip makes the next servo tick hold,
-    while the world's predictor still offers a coasting target and the tracker still trusts it."""
+    """Scene step → record → servo step: the frame in which vision's tracker drops the track makes the
+    next servo tick hold, while the world's predictor still offers a coasting target."""
     from vishap.robot import kinematics
     from vishap.runtime.assembly import make_servo_step, open_device
     from vishap.runtime.core import SceneStep
@@ -163,7 +163,12 @@ def test_vision_losing_the_finger_reaches_the_guard_in_the_record_and_holds_on_t
             tk = step.tick(t, rec)
             t += 1e-3
     assert tk.action == "track"
+    # one missed frame while the tracker still coasts (confidence 0.6): not lost, the device follows
     rec, inter, _ = scene_step.step(10 / 30.0, False, np.full(3, np.nan), 0.6, None)
-    assert inter is not None and np.all(np.isfinite(rec.X_ee)) and rec.lost  # the world still predicts
-    tk = step.tick(t, rec)
+    assert inter is not None and np.all(np.isfinite(rec.X_ee)) and not rec.lost  # the world still predicts
+    assert step.tick(t, rec).action == "track"
+    # the tracker drops the track (confidence 0): the record says lost and the very next tick holds
+    rec, inter, _ = scene_step.step(11 / 30.0, False, np.full(3, np.nan), 0.0, None)
+    assert inter is not None and np.all(np.isfinite(rec.X_ee)) and rec.lost
+    tk = step.tick(11 / 30.0 + 1e-3, rec)
     assert tk.action == "hold" and tk.fault.value == "finger_lost"

@@ -55,7 +55,9 @@ class TargetRecord:
     calibration fault) arrives — until then the servo holds the arm where it is. ``subject`` is the
     index of the subject in the scene's objects (−1: none). ``finger``/``finger_velocity`` are the
     world's estimate of the pad point at ``finger_t`` (NaN when it has none). ``lost``: vision found
-    no fingertip in this frame (the guard holds at once). ``valid`` is not packed: :meth:`unpack`
+    no fingertip and its tracker has dropped the track (confidence 0; the guard holds at once) — a
+    frame missed while the track still coasts is not a loss (docs/runtime.md: holding on every
+    missed frame parks the device where it hides the finger). ``valid`` is not packed: :meth:`unpack`
     sets it false for values no scene step writes (an all-zero record among them).
     """
 
@@ -150,7 +152,7 @@ class SceneStep:
         self.seq += 1
         s, imminent, in_contact = self._flags
         self.record = TargetRecord(self.seq, X, float(t_sample), float(confidence), calibrated, self.armed,
-                                   s, imminent, in_contact, finger, v_f, t_f, lost=not found)
+                                   s, imminent, in_contact, finger, v_f, t_f, lost=not found and not confidence > 0.0)
         return self.record, inter, p_pad
 
 

@@ -12,10 +12,10 @@ target the controller may use and the action taken:
 - ``retreat`` the trouble has lasted longer than ``retreat_after_s``, or there is no calibration:
               move to the retreat point, away from where a finger could be.
 
-Vision says "lost" explicitly (the frame gave no fingertip), and the guard holds on the first
-servo tick that sees it; the confidence floor only catches a track vision still reports but trusts
-little. Waiting for the tracker's confidence to decay below the floor cost about 4 frames (117 ms
-at 30 Hz) during which the device followed a coasting prediction of a finger nobody saw.
+Vision says "lost" explicitly (its tracker dropped the track), and the guard holds on the first
+servo tick that sees it; the confidence floor catches a track that still coasts through missed
+frames (four at 30 Hz, about 117 ms). Holding on every missed frame was measured to park the
+device where it hides the fingertip from a camera (docs/runtime.md), so a single miss is not a loss.
 
 A finger that vision loses while it presses the device is not gone: the device feels it (the
 caller says so with ``pressed``: the device pushed in under the subject's surface while the law
