@@ -84,7 +84,7 @@ def render_tip_hsv(pair, row, rig) -> np.ndarray:
 
 def _renders(seeds: int, frames: int, width: int, height: int) -> dict:
     """Tip HSV and ms per pair of every look; the looks are rendered interleaved, frame by frame."""
-    from vishap.sim.sequence import SequenceSpec, frame_state, make_renderer, prepare
+    from vishap.sim.sequence import SequenceSpec, make_renderer, prepare, render_frames
 
     px = {k: [] for k in LOOKS}
     ms = {k: [] for k in LOOKS}
@@ -97,13 +97,11 @@ def _renders(seeds: int, frames: int, width: int, height: int) -> dict:
             preps[k] = prepare(spec)
             rends[k] = make_renderer(preps[k])
         try:
-            from vishap.sim.sequence import render_frames
-
             streams = {k: render_frames(preps[k], rends[k]) for k in LOOKS}
             for _ in range(frames):
                 for k in (list(LOOKS)[seed % 3:] + list(LOOKS)[: seed % 3]):  # rotate the order
                     t0 = time.perf_counter()
-                    state, pair, row = next(streams[k])
+                    _, pair, row = next(streams[k])
                     ms[k].append(1e3 * (time.perf_counter() - t0))
                     hsv = render_tip_hsv(pair, row, preps[k].rig)
                     if len(hsv):

@@ -21,6 +21,8 @@ synthetic, and synthetic against real PCK@30 with the rank correlation across th
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import os
 import tempfile
 from dataclasses import replace
@@ -90,9 +92,10 @@ def _render(tmp: Path, frames: int, seeds: int) -> list[Path] | None:
         # the real look (skin and a photograph as measured on real photos, docs/synth.md): the plain
         # look's render could not tell the variants apart
         try:
-            ok = cli(["synth", "--scene", "wall", "--frames", str(frames), "--seed", str(seed), "--lighting", "ramp",
-                      "--fps", "10", "--hand-free", "3", "--skin-tone", "real", "--background", "photo",
-                      "--out", str(tmp / f"wall_{seed}"), "--quiet"]) == 0
+            with contextlib.redirect_stdout(io.StringIO()):  # keep `--json` output to the bench's record
+                ok = cli(["synth", "--scene", "wall", "--frames", str(frames), "--seed", str(seed),
+                          "--lighting", "ramp", "--fps", "10", "--hand-free", "3", "--skin-tone", "real",
+                          "--background", "photo", "--out", str(tmp / f"wall_{seed}"), "--quiet"]) == 0
         except Exception:  # no renderer here (EGL missing)
             ok = False
         if not ok:
