@@ -41,10 +41,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="script time of the first frame (default 0; later starts skip the hand-free frames)")
     p.add_argument("--lighting", choices=LIGHTING, default="constant", help="light change during the sequence")
     p.add_argument("--skin-tone", type=_tone, default=None,
-                   help="light, medium, tan, dark or a number 0 (light) … 1 (dark); default: chosen by seed")
+                   help="light, medium, tan, dark or a number 0 (light) … 1 (dark); default: chosen by seed; "
+                        "real or real:TONE: skin and light as measured on real photos (pale highlights, shading)")
     p.add_argument("--background", default="auto",
                    help="table texture: auto (ordinary, by seed), mixed (skin-like hard negative for 1 seed in 5), "
-                        "or a name: grey, concrete, checker, blue_cloth, cutting_mat, wood*, beige* (*skin-like)")
+                        "or a name: grey, concrete, checker, blue_cloth, cutting_mat, wood*, beige* (*skin-like); "
+                        "photo, photo:NAME or photo:FILE: a real photograph (shipped ones: hopper)")
     p.add_argument("--no-occlusion", dest="occlusion", action="store_false", help="no rod crossing the view")
     p.add_argument("--no-effects", dest="effects", action="store_false",
                    help="exact pixels: no sensor noise, defocus, motion blur or auto-exposure")

@@ -172,16 +172,19 @@ def hand_part_poses(tip_robot, finger_dir_robot, flexion: float = 0.2, roll: flo
 
 
 def skin_tone_rgb(tone: str | float, rng: np.random.Generator | None = None) -> tuple[float, float, float]:
-    """sRGB skin colour in 0…1 for a named tone or a position 0 (light) … 1 (dark) between them.
+    """sRGB skin colour in 0…1 for a named tone or a position 0 (light) … 1 (dark) between them
+    (``real:TONE`` gives TONE's colour; how the real look draws and lights it is
+    :mod:`vishap.sim.skin_look`).
 
     With ``rng``, a small per-sequence variation (±4 % per channel) is added.
     """
-    names = list(SKIN_TONES)
-    if isinstance(tone, str):
-        if tone not in SKIN_TONES:
-            from vishap._core.errors import ConfigError
+    from vishap.sim.skin_look import parse_skin_tone
 
-            raise ConfigError(f"unknown skin tone {tone!r}; expected one of {names} or a number 0…1", field="skin_tone")
+    names = list(SKIN_TONES)
+    _, tone = parse_skin_tone(tone)  # ``real[:TONE]``: the tone (the middle one when drawn by seed)
+    if tone is None:
+        tone = 0.5
+    if isinstance(tone, str):
         rgb = np.array(SKIN_TONES[tone], dtype=np.float64)
     else:
         x = float(np.clip(tone, 0.0, 1.0)) * (len(names) - 1)

@@ -17,6 +17,7 @@ the ground truth ``rig.project(p_cam)`` and the pixels agree for any calibrated 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -29,7 +30,8 @@ from vishap.sim._pyrender import import_pyrender, set_msaa
 from vishap.sim.camera_effects import CameraEffects, EffectsState, apply_effects
 from vishap.sim.scene_objects import SceneSpec, load_scene_spec, object_meshes
 from vishap.sim.state import FrameState, PassiveObject, RenderedPair
-from vishap.sim.textures import choose_background, make_texture
+from vishap.sim.skin_look import mottling_colours, skin_look
+from vishap.sim.textures import choose_background, is_photo, make_texture, texture_tile_m
 from vishap.vision.rig import StereoRig
 
 __all__ = ["StereoRenderer", "FrameState", "RenderedPair", "PassiveObject"]
@@ -52,9 +54,12 @@ class StereoRenderer:
     rig: the stereo rig (image size, intrinsics, distortion, right camera pose).
     T_robot_cam: (4, 4) left camera → robot frame.
     scene: a scene name (``wall``, ``button``, ``fabric``) or a scene file.
-    background: a texture name, ``auto`` (an ordinary texture chosen by seed) or ``mixed``.
+    background: a texture name, ``auto`` (an ordinary texture chosen by seed), ``mixed``, or a real
+        photograph (``photo``, ``photo:NAME``, ``photo:FILE``; :mod:`vishap.sim.textures`).
     seed: per-sequence randomness (skin-tone variation, texture, sensor noise).
-    skin_tone: a name of :data:`vishap.sim.hand.SKIN_TONES` or 0 (light) … 1 (dark); None picks by seed.
+    skin_tone: a name of :data:`vishap.sim.hand.SKIN_TONES` or 0 (light) … 1 (dark); None picks by seed;
+        ``real`` or ``real:TONE`` draws the skin and its light as measured on real photographs
+        (:mod:`vishap.sim.skin_look`).
     effects: camera effects (on by default); ``CameraEffects.off()`` or None for exact pixels.
     msaa: multisample count of the colour pass (0 = off, labels from the same pass).
     threads: llvmpipe rasteriser threads (``LP_NUM_THREADS``), only before the first renderer.
@@ -75,12 +80,19 @@ class StereoRenderer:
         self._fx_state = EffectsState()
         rng = np.random.default_rng([self.seed, 0x5EED])
         self.background = choose_background(background, self.seed)
-        if skin_tone is None:
-            skin_tone = float(rng.uniform(0.0, 1.0))
-        self.skin_rgb = _hand.skin_tone_rgb(skin_tone, rng)
+        self.look = skin_look(skin_tone, self.seed, rng)
+        self.skin_rgb = self.look.rgb
+        # the exposure of the real look: auto-exposure aims at a brighter (or darker) mean; without
+        # auto-exposure the lights carry it
+        self._light_gain = 1.0
+        if self.look.exposure != 1.0:
+            if self.effects.gain:
+                self.effects = replace(self.effects, target_mean=self.effects.target_mean * self.look.exposure)
+            else:
+                self._light_gain = self.look.exposure
         self._light_base: dict = {}
-        self.scene = pr.Scene(bg_color=[0.0, 0.0, 0.0, 0.0], ambient_light=[0.22, 0.22, 0.22])
-        self._ambient = np.array([0.22, 0.22, 0.22])
+        self._ambient = np.full(3, 0.22 * self.look.ambient_scale * self._light_gain) * np.asarray(self.look.light_rgb)
+        self.scene = pr.Scene(bg_color=[0.0, 0.0, 0.0, 0.0], ambient_light=self._ambient)
         self._build_static(rng)
         self._build_hand()
         self._build_device()
@@ -106,8 +118,10 @@ class StereoRenderer:
         pr = self.pyrender
         self._labels: dict = {}
         tex = make_texture(self.background, np.random.default_rng([self.seed, 0x7E7]))
-        texture = pr.Texture(source=tex, source_channels="RGB", sampler=pr.Sampler(magFilter=9729, minFilter=9987))
-        size, tile = 2.4, 0.40  # table size and texture repeat, m
+        wrap = 33648 if is_photo(self.background) else 10497  # GL_MIRRORED_REPEAT: a photograph has no seamless edge
+        texture = pr.Texture(source=tex, source_channels="RGB",
+                             sampler=pr.Sampler(magFilter=9729, minFilter=9987, wrapS=wrap, wrapT=wrap))
+        size, tile = 2.4, texture_tile_m(self.background)  # table size and texture repeat, m
         half = size / 2.0
         cx = 0.3
         pos = np.array([[cx - half, -half, 0], [cx + half, -half, 0], [cx + half, half, 0], [cx - half, half, 0]], np.float32)
@@ -121,20 +135,34 @@ class StereoRenderer:
         for name, mesh, rgb in object_meshes(self.spec):
             self._add(mesh, self._material(rgb, 3, roughness=0.5), 3, name=name)
         # lights: a key light from above the user's side, a fill near the cameras
-        key = pr.DirectionalLight(color=np.ones(3), intensity=2.6)
-        fill = pr.PointLight(color=np.ones(3), intensity=0.9)
-        self._key_node = self.scene.add(key, pose=_light_pose([0.6, 0.2, 0.6], [0.2, 0.0, -0.15]))
+        look, gain = self.look, self._light_gain
+        key = pr.DirectionalLight(color=np.asarray(look.light_rgb), intensity=2.6)
+        fill = pr.PointLight(color=np.asarray(look.light_rgb), intensity=0.9)
+        target = np.array([0.2, 0.0, -0.15])
+        eye = [0.6, 0.2, 0.6] if look.key_direction is None else target + 0.8 * np.asarray(look.key_direction)
+        self._key_node = self.scene.add(key, pose=_light_pose(eye, target))
         cam_pos = self.T_robot_cam[:3, 3]
         self._fill_node = self.scene.add(fill, pose=_translation(cam_pos + np.array([0.0, 0.0, 0.15])))
-        self._light_base = {self._key_node: 2.6, self._fill_node: 0.9}
+        self._light_base = {self._key_node: 2.6 * look.key_scale * gain, self._fill_node: 0.9 * look.ambient_scale * gain}
 
     def _build_hand(self) -> None:
-        skin = self._material(self.skin_rgb, 1, roughness=0.55)
-        nail_rgb = tuple(min(1.0, 0.55 * c + 0.45 * d) for c, d in zip(self.skin_rgb, (0.96, 0.80, 0.80)))
-        nail = self._material(nail_rgb, 1, roughness=0.3)
+        look = self.look
+        skin = self._material(look.rgb, 1, roughness=look.roughness)
+        nail = self._material(look.nail_rgb, 1, roughness=look.nail_roughness)
         self._hand_nodes = {}
-        for name, mesh in _hand.hand_part_meshes().items():
-            self._hand_nodes[name] = self._add(mesh, nail if name == "nail" else skin, 1, name=name)
+        for i, (name, mesh) in enumerate(_hand.hand_part_meshes().items()):
+            mat = nail if name == "nail" else skin
+            if not (look.smooth or look.mottling):
+                self._hand_nodes[name] = self._add(mesh, mat, 1, name=name)
+                continue
+            # smooth shading and a mottled albedo (vertex colours multiply the lit colour)
+            colours = mottling_colours(mesh.vertices, look.mottling if name != "nail" else 0.0, look.seed, i)
+            prim = self.pyrender.Primitive(positions=mesh.vertices.astype(np.float32),
+                                           normals=mesh.vertex_normals.astype(np.float32), color_0=colours,
+                                           indices=mesh.faces.astype(np.uint32), material=mat)
+            node = self.scene.add(self.pyrender.Mesh([prim]), name=name)
+            self._labels[node] = 1
+            self._hand_nodes[name] = node
 
     def _build_device(self) -> None:
         link_mat = self._material((0.16, 0.16, 0.17), 2, roughness=0.45, metallic=0.2)
