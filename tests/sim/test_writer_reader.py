@@ -207,7 +207,7 @@ def test_track_and_eval_read_a_video_store_as_they_read_pngs(png_and_video, tmp_
     capsys.readouterr()
     evals = []
     for src in (png, video):
-        assert main(["eval", "vision", str(src)]) == 0
+        assert main(["eval", "vision", str(src), "--json"]) == 0
         evals.append(timeless(json.loads(capsys.readouterr().out)))
     assert evals[0]["frames"] == 18 and evals[0]["detection_rate"] > 0 and evals[0] == evals[1]
 
