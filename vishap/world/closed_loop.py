@@ -179,6 +179,7 @@ def run_approach(
     d_f = np.zeros(n_ticks)
     touching = np.zeros(n_ticks, dtype=bool)
     xd_log = np.empty((n_ticks, 3))
+    v_cmd = np.full((n_ticks, 3), np.nan)  # the travel limiter's output velocity
     t_contact, k_contact = None, 0
     touched = False
     cost = 0.0
@@ -213,6 +214,8 @@ def run_approach(
         dev[k] = p_dev
         v_dev[k] = state.v_robot
         xd_log[k] = np.asarray(rec.X_ee) + step.mount
+        if servo.travel is not None:
+            v_cmd[k] = servo.travel._v
         subj[k] = names[rec.subject] if rec.subject >= 0 else ""
         touching[k] = bool(F_pad.any())
         if t_contact is None and (touching[k] or d_f[k] >= 0.0):
@@ -250,7 +253,8 @@ def run_approach(
     log = None
     if record:
         log = {"t": np.arange(n_ticks) * dt, "device": dev, "X_d": xd_log, "depth_finger": d_f, "force_n": f_n,
-               "touching": touching, "finger": P_f[:n_ticks]}
+               "touching": touching, "finger": P_f[:n_ticks],
+               "v_device": v_dev[:n_ticks], "v_command": v_cmd[:n_ticks], "v_finger": V_f[:n_ticks], "k_contact": k_contact}
     return ApproachResult(
         traj.object_name, obj.kind, traj.speed_m_s, t_contact, touched, in_place, lead, err,
         cost / max(n_ticks, 1) * 1e6, order, None if t_contact is None else subj[k_contact],
