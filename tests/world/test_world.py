@@ -260,20 +260,21 @@ def _near_world(**kw):
 
 
 def test_near_the_finger_the_landing_point_moves_only_when_the_landing_would_leave_the_face():
-    """Within ``lock_m`` of the surface the device waits on its landing point: a prediction 3 mm away
-    does not move it (the 40 mm plate's finger lands ≥ 10 mm inside its edge from up to 10 mm off its
-    centre; half that room is kept for the rest of the prediction's error), one 7 mm away does."""
+    """Within ``lock_m`` of the surface the waiting point ignores moves under the 1 mm dead-band; once
+    frozen (``hold_m``) it moves only when the landing would leave half the finger's room on the 40 mm
+    plate (10 mm from its centre keeps the finger 10 mm inside the edge): not for 3 mm, for 7 mm."""
     w = _near_world()
-    assert w.replan_m == pytest.approx(0.005)
+    assert w.replan_m == pytest.approx(0.005) and w.deadband_m == pytest.approx(0.001)
     a = w.update(0.1, [0.20, 0.0, -0.150 + 0.008]).X_d
-    b = w.update(0.2, [0.203, 0.0, -0.150 + 0.007]).X_d
+    b = w.update(0.2, [0.2005, 0.0, -0.150 + 0.007]).X_d
     assert np.allclose(a, [0.20, 0.0, -0.15]) and np.allclose(b, a)
-    c = w.update(0.3, [0.207, 0.0, -0.150 + 0.006]).X_d
-    assert np.allclose(c, [0.207, 0.0, -0.15])
-    # further from the surface than lock_m the target follows every prediction, as before
-    w2 = _near_world()
-    assert np.allclose(w2.update(0.1, [0.203, 0.0, -0.150 + 0.015]).X_d, [0.203, 0.0, -0.15])
-    # a face too narrow to land off its centre (18 mm, the keys' and the panel's) keeps following
+    c = w.update(0.3, [0.203, 0.0, -0.150 + 0.006]).X_d
+    assert np.allclose(c, [0.203, 0.0, -0.15])
+    d = w.update(0.4, [0.206, 0.0, -0.150 + 0.003]).X_d  # frozen: 3 mm is within the room
+    assert np.allclose(d, c)
+    e = w.update(0.5, [0.210, 0.0, -0.150 + 0.002]).X_d  # 7 mm: the finger would land too near the edge
+    assert np.allclose(e, [0.210, 0.0, -0.15])
+    # a face too narrow to land off its centre (18 mm, the keys' and the panel's) has no room: no run-up
     w3 = World(load_scene("panel"), predictor="none", runup_s=0.0)
     assert w3.replan_m == 0.0
 

@@ -101,6 +101,7 @@ class World:
         servo_lag_s: float = 0.03,
         inside_m: float = 0.010,
         runup_s: float = 0.06,
+        deadband_m: float = 0.001,
     ):
         if contact_model not in CONTACT_MODELS:
             raise ValueError(f"contact_model must be one of {CONTACT_MODELS}, got {contact_model!r}")
@@ -122,10 +123,12 @@ class World:
         self.meeting = MeetingPoint()
         self.lock_m, self.lock_s, self.runup_s = float(lock_m), float(lock_s), float(runup_s)
         self.freeze_s, self.servo_lag_s = float(freeze_s), float(servo_lag_s)
-        # near the finger the plan moves only when the predicted landing point would leave the part of
-        # the passive face where the finger lands at least ``inside_m`` inside its edge; half that room
-        # is kept for the prediction's own error until the touch
+        # the room the finger has on the passive face: how far from its centre it may land and still be
+        # ``inside_m`` inside its edge. Once frozen, the waiting point moves only when the landing would
+        # leave half of it (the other half is for the prediction's remaining error); the run-up never
+        # takes more than that half either. Before, near the finger, moves under ``deadband_m`` are noise.
         self.replan_m = max(0.5 * (scene.passive_object.half_size_m - float(inside_m)), 0.0)
+        self.deadband_m = float(deadband_m)
         tops = [o.centre + o.R[:, :2] @ (o.half * np.array(s)) for o in scene.objects for s in
                 ((1, 1), (1, -1), (-1, 1), (-1, -1))]
         self.z_safe = float(max(p[2] for p in tops)) + self.clearance_m
@@ -297,13 +300,13 @@ class World:
         if frozen:  # hold the meeting point, do not chase noise (nor the extrapolated finger under the surface)
             if self.held is None:
                 self.held = c if self.plan is None else self.plan
-            elif self.replan_m > 0.0 and _tangential(c - self.held, subj.normal) > 2.0 * self.replan_m:
+            elif self.replan_m > 0.0 and _tangential(c - self.held, subj.normal) > self.replan_m:
                 self.held, self._run = c, None  # re-planned only to keep the finger on the face
             return self.held.copy()
         self.held = None
         self._run = None
         if near:  # near the finger: move only when the landing needs it
-            if self.plan is None or _tangential(c - self.plan, subj.normal) > self.replan_m:
+            if self.plan is None or _tangential(c - self.plan, subj.normal) > self.deadband_m:
                 self.plan = c
             return self.plan.copy()
         self.plan = None
