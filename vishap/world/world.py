@@ -11,7 +11,8 @@ At vision rate, :meth:`World.update` takes the fingertip in the robot frame and
    (``handover``: ``hold`` freezes that point once the finger is within ``hold_m``; ``blend``
    slides it towards the finger's present projection; ``track`` uses the present projection).
    A button's target is its top centre (VisHap §2.3). In contact, a ``follow`` mode tracks the
-   finger's projection (sliding);
+   finger's projection (sliding). Near the finger the device waits still on the landing point and
+   moves only as much as the landing needs, then runs up sideways with the finger (:class:`World`);
 5. routes the device around objects: if the straight path from the device to ``X_d`` would cut
    through any object's solid, ``X_d`` becomes a way-point above the obstacles.
 
@@ -76,6 +77,14 @@ class World:
     extrapolated in height; ``both``: the two fused by their variances; ``reach``: a minimum-jerk
     reach fitted to the samples, :class:`~vishap.world.predictor.ReachFit`; ``all``: ray, path and
     reach fused by their variances), ``engage_m`` (depth beyond which the mode's lateral contact gain applies).
+
+    The approach near the finger (issue 16's "ready at the touch"): within ``lock_m`` of the surface
+    the waiting point ignores moves under ``deadband_m``;
+    ``freeze_s`` before the touch (the reach fit's time; or within ``hold_m``) it is frozen and moves
+    only when the landing would leave half the finger's room on the passive face (``inside_m`` inside
+    its edge); over the last ``runup_s`` the target runs up sideways at the finger's fitted velocity so
+    that the finger lands on a face moving with it, timed for when the servo reaches the sample
+    (``latency_s`` + one sample interval + ``servo_lag_s``, the servo's own lag behind its target).
     """
 
     def __init__(
@@ -96,7 +105,6 @@ class World:
         contact_model: str = "all",
         engage_m: float = 0.0003,
         lock_m: float = 0.010,
-        lock_s: float = 0.0,
         freeze_s: float = 0.09,
         servo_lag_s: float = 0.03,
         inside_m: float = 0.010,
@@ -121,7 +129,7 @@ class World:
         self.moving_m_s = 0.05  # finger speed above which a subject chosen by heading is kept
         self.path_margin_m, self.clearance_m = float(path_margin_m), float(clearance_m)
         self.meeting = MeetingPoint()
-        self.lock_m, self.lock_s, self.runup_s = float(lock_m), float(lock_s), float(runup_s)
+        self.lock_m, self.runup_s = float(lock_m), float(runup_s)
         self.freeze_s, self.servo_lag_s = float(freeze_s), float(servo_lag_s)
         # the room the finger has on the passive face: how far from its centre it may land and still be
         # ``inside_m`` inside its edge. Once frozen, the waiting point moves only when the landing would
@@ -197,7 +205,7 @@ class World:
         confirmed = in_contact and self._touch_confirmed(subj, p_robot_device)
         # near the finger: under the lock height (or time), and above the surface or, when the extrapolated
         # finger is already under it, over the object itself (a finger passing beside it is not landing)
-        near = (h < self.lock_m or (tau is not None and tau < self.lock_s)) and (
+        near = h < self.lock_m and (
             h > -self.contact_margin_m or subj.inside_extent(p, self.path_margin_m))
         t_left = tau if self.reach.t_touch is None or not near else self.reach.t_touch - t - self.latency_s
         frozen = near and (h < self.hold_m or (t_left is not None and t_left < self.freeze_s))
