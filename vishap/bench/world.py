@@ -196,8 +196,8 @@ def _perfect_world_class():
             self._now = t + self.latency_s
             return super().update(t, p_robot_finger, p_robot_device)
 
-        def _target(self, subj, p, c, h, in_contact):
-            X = super()._target(subj, p, c, h, in_contact)
+        def _target(self, subj, p, c, h, in_contact, *approach):
+            X = super()._target(subj, p, c, h, in_contact, *approach)
             if subj is self._obj and not in_contact and subj.mode.target != "centre" and self._now >= self._t_known:
                 return self._touch.copy()
             return X
