@@ -135,4 +135,40 @@ def test_near_the_finger_the_speed_is_capped_and_touch_down_is_slow():
     assert speeds.max() > 0.4  # far from the finger it still travels fast
     at_touch = dists < 0.001
     assert at_touch.any() and speeds[at_touch].max() <= 0.010 + 1e-12
-    assert lim.cap_at(None) == 0.6 and lim.cap_at(0.0) == pytest.approx(0.010)
+    assert lim.cap_at(None) == 0.6 and lim.cap_at(0.0) == pytest.approx(0.25) and lim.cap_at(0.04) == 0.6
+    assert lim.normal_cap_at(0.0) == pytest.approx(0.010) and lim.normal_cap_at(None) == 0.6
+
+
+def test_with_a_normal_only_the_speed_towards_the_finger_falls_to_the_touch_speed():
+    """The finger 0.5 mm over the device's face: the device still moves sideways at the near-finger
+    cap (0.25 m/s), but towards the finger along the normal at most 10 mm/s (a cap on the 3-D
+    distance held the sideways move to 10 mm/s as well)."""
+    n = (0.0, 0.0, 1.0)
+    lim = TravelLimiter(0.6, 40.0)
+    lim.reset(0.0, 0.0, 0.0)
+    out = [lim.step(k * 1e-3, 0.03, 0.0, 0.0, 0.0, 0.0, 0.0, finger_m=0.005, gap_m=0.0005, normal=n) for k in range(100)]
+    v = np.array([o[3:] for o in out])
+    assert np.linalg.norm(v, axis=1).max() == pytest.approx(0.25)
+    lim.reset(0.0, 0.0, 0.0)
+    out = [lim.step(k * 1e-3, 0.0, 0.0, 0.03, 0.0, 0.0, 0.0, finger_m=0.005, gap_m=0.0005, normal=n) for k in range(100)]
+    vz = np.array([o[5] for o in out])
+    assert vz.max() == pytest.approx(0.010) and vz.min() >= 0.0
+    # away from the finger (down the normal) only the near-finger cap applies
+    lim.reset(0.0, 0.0, 0.0)
+    out = [lim.step(k * 1e-3, 0.0, 0.0, -0.03, 0.0, 0.0, 0.0, finger_m=0.005, gap_m=0.0005, normal=n) for k in range(100)]
+    assert min(o[5] for o in out) == pytest.approx(-0.25)
+
+
+def test_anchor_follows_the_arm_only_where_the_object_gain_let_go():
+    lim = TravelLimiter(0.6, 40.0)
+    lim.reset(0.0, 0.0, 0.0)
+    eye = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    lim.anchor(0.01, 0.02, -0.005, 0.1, 0.0, -0.2, eye)
+    assert lim._x == (0.0, 0.0, 0.0) and lim._v == (0.0, 0.0, 0.0)
+    normal_free = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 0.0))  # λ_z = 0: the finger pushes the device in
+    lim.anchor(0.01, 0.02, -0.005, 0.1, 0.0, -0.2, normal_free)
+    assert lim._x == pytest.approx((0.0, 0.0, -0.005)) and lim._v == pytest.approx((0.0, 0.0, -0.2))
+    # when the gain returns, the output leaves the arm's depth at the travel limits, not in one step
+    out = lim.step(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    out = lim.step(0.001, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    assert out[2] < -0.004 and abs(out[5]) <= 0.2 + 40.0 * 0.001 + 1e-9

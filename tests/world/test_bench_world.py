@@ -17,3 +17,22 @@ def test_line_fit_r2():
     d = np.linspace(0.001, 0.006, 50)
     slope, icpt, r2 = _line_fit(d, 444.0 * d - 0.1)
     assert abs(slope - 444.0) < 1e-6 and abs(r2 - 1.0) < 1e-12
+
+
+def test_perfect_prediction_bound_runs_on_the_world_and_puts_the_device_in_place():
+    """The bench's perfect-prediction world overrides the world's target: it must keep the world's
+    signature (it once crashed the sensitivity rows) and, told the touch point, be in place."""
+    import pytest
+
+    pytest.importorskip("mujoco")
+    from vishap.bench.world import _perfect_world_class
+    from vishap.world.closed_loop import VisionModel, run_approach
+    from vishap.world.scene import load_scene
+    from vishap.world.trajectories import make_approaches
+
+    scene = load_scene("wall")
+    tr = make_approaches(scene, 1, speeds=(0.2,), seed=3, slide=False)[0]
+    w = _perfect_world_class()(scene, latency_s=0.033, contact_model="both")
+    w.truth(tr, None)
+    r = run_approach(scene, tr, w, vision=VisionModel(), stop_after_contact_s=0.02)
+    assert r.in_place and r.contact_error_m < 0.001

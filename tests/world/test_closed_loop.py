@@ -115,3 +115,15 @@ def test_an_approach_reports_whether_the_device_was_ready():
     r = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s), vision=CLEAN, stop_after_contact_s=0.02,
                      record=True)
     assert isinstance(r.ready, bool) and isinstance(r.log, dict)  # the flag, not another field's value
+
+
+def test_an_oblique_approach_is_ready_with_the_run_up_and_not_without_it():
+    """A 0.2 m/s approach coming in 30 mm sideways lands moving 30–60 mm/s sideways: a device waiting
+    still under it is not ready (the finger slides onto it); with the run-up it is, every condition met."""
+    scene = load_scene("wall")
+    tr = _traj(scene, "wall", [0.03, 0.0, 0.05], 0.2)
+    r = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s), vision=CLEAN, stop_after_contact_s=0.02)
+    still = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s, runup_s=0.0), vision=CLEAN,
+                         stop_after_contact_s=0.02)
+    assert r.ready and all(r.ready_checks.values()) and r.in_place
+    assert not still.ready and not still.ready_checks["still_tangential"] and still.ready_checks["inside"]

@@ -219,3 +219,90 @@ def test_a_slow_finger_heading_for_a_key_switches_the_subject_early():
         p = start + (end - start) * min(0.1 * t / L, 1.0)
         it = w.update(t, p)
     assert p[2] > -0.12 and np.linalg.norm(end - p) / 0.1 > 0.42 and it.object_name == "key_a"
+
+
+def test_reach_fit_gives_the_decelerating_finger_velocity_at_the_touch():
+    """The fitted reach's tangential velocity at the touch (what the device's run-up matches) is the
+    finger's within 30 mm/s (of 64) from two thirds of the reach; the straight-line Kalman estimate,
+    33 ms late on a decelerating finger, is off by 170 mm/s."""
+    from vishap.world.predictor import KalmanPredictor, ReachFit
+
+    tt = np.linspace(0.1, 0.4, 30001)
+    zs = np.array([_bowed_reach(t)[2] for t in tt])
+    t_touch = tt[np.argmax(zs <= -0.150)]
+    v_true = (_bowed_reach(t_touch + 1e-4) - _bowed_reach(t_touch - 1e-4)) / 2e-4
+    v_true[2] = 0.0
+    rng = np.random.default_rng(4)
+    rf, kf = ReachFit(), KalmanPredictor()
+    t = 0.0
+    while t < 0.1 + 0.67 * 0.30:
+        p = _bowed_reach(t) + rng.normal(0.0, 0.0003, 3)
+        rf.observe(t, p)
+        kf.observe(t, p)
+        t += 1 / 30
+    assert rf.tangential_velocity_at(t_touch) is None  # no fit yet
+    rf.contact(np.array([0.2, 0.0, -0.15]), np.eye(3))
+    v_fit = rf.tangential_velocity_at(rf.t_touch)
+    v_kf = kf.state_at(t + 0.033)[1]
+    v_kf[2] = 0.0
+    assert v_fit[2] == 0.0 and np.linalg.norm(v_fit - v_true) < 0.03
+    assert np.linalg.norm(v_kf - v_true) > 4 * np.linalg.norm(v_fit - v_true)
+    # the position model agrees with the velocity model
+    dt = 0.01
+    dp = (rf.tangential_at(rf.t_touch) - rf.tangential_at(rf.t_touch - dt)) / dt
+    assert np.allclose(dp, rf.tangential_velocity_at(rf.t_touch - dt / 2), atol=0.003)
+
+
+def _near_world(**kw):
+    w = World(load_scene("wall"), predictor="none", contact_model="ray", runup_s=0.0, **kw)
+    w.update(0.0, [0.20, 0.0, -0.150 + 0.030])  # far: the target is the finger's projection
+    return w
+
+
+def test_near_the_finger_the_landing_point_moves_only_when_the_landing_would_leave_the_face():
+    """Within ``lock_m`` of the surface the waiting point ignores moves under the 1 mm dead-band; once
+    frozen (``hold_m``) it moves only when the landing would leave half the finger's room on the 40 mm
+    plate (10 mm from its centre keeps the finger 10 mm inside the edge): not for 3 mm, for 7 mm."""
+    w = _near_world()
+    assert w.replan_m == pytest.approx(0.005) and w.deadband_m == pytest.approx(0.001)
+    a = w.update(0.1, [0.20, 0.0, -0.150 + 0.008]).X_d
+    b = w.update(0.2, [0.2005, 0.0, -0.150 + 0.007]).X_d
+    assert np.allclose(a, [0.20, 0.0, -0.15]) and np.allclose(b, a)
+    c = w.update(0.3, [0.203, 0.0, -0.150 + 0.006]).X_d
+    assert np.allclose(c, [0.203, 0.0, -0.15])
+    d = w.update(0.4, [0.206, 0.0, -0.150 + 0.003]).X_d  # frozen: 3 mm is within the room
+    assert np.allclose(d, c)
+    e = w.update(0.5, [0.210, 0.0, -0.150 + 0.002]).X_d  # 7 mm: the finger would land too near the edge
+    assert np.allclose(e, [0.210, 0.0, -0.15])
+    # a face too narrow to land off its centre (18 mm, the keys' and the panel's) has no room: no run-up
+    w3 = World(load_scene("panel"), predictor="none", runup_s=0.0)
+    assert w3.replan_m == 0.0
+
+
+def test_the_run_up_moves_the_target_with_the_finger_sideways_near_the_touch():
+    """Near the touch the target is offset from the landing point by the finger's fitted sideways
+    velocity times the time from the touch to when the servo reaches the sample (its age, one sample
+    interval and the servo's lag): behind the landing point before the touch, along with the finger
+    after it. Without ``runup_s`` it is the landing point itself."""
+    scene = load_scene("wall")
+    w = World(scene, latency_s=0.033, contact_model="both")
+    w0 = World(scene, latency_s=0.033, contact_model="both", runup_s=0.0)
+    rng = np.random.default_rng(5)
+    seen = 0
+    for k in range(40):
+        t = k / 30
+        p = _bowed_reach(t) + rng.normal(0.0, 0.0002, 3)
+        it, it0 = w.update(t, p), w0.update(t, p)
+        off = it.X_d - it0.X_d
+        if w._run is None:
+            assert np.allclose(off, 0.0)
+            continue
+        tt, v = w._run
+        t_use = t + w.latency_s + 1 / 30 + w.servo_lag_s
+        assert off[2] == 0.0 and np.allclose(off, v * np.clip(t_use - tt, -w.runup_s, w.runup_s), atol=1e-9)
+        seen += 1
+        if it.in_contact:
+            break
+    v_true = (_bowed_reach(tt + 1e-4) - _bowed_reach(tt - 1e-4)) / 2e-4
+    v_true[2] = 0.0
+    assert seen >= 2 and np.linalg.norm(v - v_true) < 0.03 and np.linalg.norm(v) > 0.04

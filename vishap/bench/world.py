@@ -9,7 +9,8 @@ peak speeds 0.1–0.5 m/s, meets the MuJoCo PHANToM, presses, slides and leaves.
 * ``device_ready_rate`` — share of approaches where the device was *ready* at the touch (issue 16:
   for 20 ms before it still along the normal, ≤ 10 mm/s, and ≤ 20 mm/s sideways relative to the
   finger; its face within 0.5 mm of the virtual surface; the finger landing ≥ 10 mm inside the
-  face's edge; :func:`vishap.world.closed_loop.device_ready`), per speed as ``ready_rate``;
+  face's edge; :func:`vishap.world.closed_loop.device_ready`), per speed as ``ready_rate``, and the
+  share meeting each condition as ``ready_checks_rate`` (a face narrower than 20 mm never meets ``inside``);
 * Fig. 6: ``wall_force_depth_r2`` (straight line of force against fingertip depth, pooled over
   the wall presses) and ``button_click_detected`` (two slopes and a force drop), with plots;
 * ``multi_object`` — the panel scene: subject at the touch, cuts through other objects;
@@ -87,6 +88,8 @@ def _summary(results, in_place_m):
         "approaches": len(results),
         "device_in_place_rate": float(np.mean([r.in_place for r in results])) if results else None,
         "device_ready_rate": float(np.mean([r.ready for r in results])) if results else None,
+        "ready_checks_rate": {k: float(np.mean([r.ready_checks.get(k, False) for r in results]))
+                              for k in ("still_normal", "still_tangential", "face", "inside")} if results else None,
         "device_in_place_rate_2mm": float(np.mean([r.contact_error_m is not None and r.contact_error_m <= 0.002 for r in results])),
         "touched_passive_object_rate": float(np.mean([r.touched for r in results])),
         "contact_lead_time_ms_min": min(leads) if leads else None,
@@ -98,7 +101,7 @@ def _summary(results, in_place_m):
 
 def _brief(rs, trajs, in_place_m):
     sm = _summary(rs, in_place_m)
-    out = {k: sm[k] for k in ("device_in_place_rate", "contact_position_error_mm", "contact_lead_time_ms_min")}
+    out = {k: sm[k] for k in ("device_in_place_rate", "device_ready_rate", "contact_position_error_mm", "contact_lead_time_ms_min")}
     straight = [r.in_place for r, tr in zip(rs, trajs) if abs(tr.bow_m) < 0.002]
     out["straight_paths_in_place_rate"] = float(np.mean(straight)) if straight else None
     return out
@@ -196,8 +199,8 @@ def _perfect_world_class():
             self._now = t + self.latency_s
             return super().update(t, p_robot_finger, p_robot_device)
 
-        def _target(self, subj, p, c, h, in_contact):
-            X = super()._target(subj, p, c, h, in_contact)
+        def _target(self, subj, p, c, h, in_contact, *approach):
+            X = super()._target(subj, p, c, h, in_contact, *approach)
             if subj is self._obj and not in_contact and subj.mode.target != "centre" and self._now >= self._t_known:
                 return self._touch.copy()
             return X

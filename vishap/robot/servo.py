@@ -175,11 +175,12 @@ class ServoLoop:
         return self.shaper.policy
 
     def tick(self, t: float, X_d=None, extra_force_robot=None, *, t_sample: float | None = None,
-             finger_m: float | None = None) -> None:
+             finger_m: float | None = None, gap_m: float | None = None, normal=None) -> None:
         """One servo cycle at time ``t`` (s) toward ``X_d`` (m, robot frame) plus an extra force (N).
 
         ``finger_m``: the device's distance to the estimated fingertip (m, if known), for the travel
-        limiter's speed cap near the finger."""
+        limiter's speed cap near the finger; ``gap_m``/``normal`` its height over the device's face
+        along the subject's normal, for the cap on the speed towards it."""
         q1, q2, q3, w1, w2, w3 = self._read()
         if X_d is not None:
             self._offer(t, X_d, t_sample)
@@ -197,7 +198,7 @@ class ServoLoop:
                 if F is not None:
                     extra_force_robot = F if extra_force_robot is None else np.asarray(F) + np.asarray(extra_force_robot)
         if travel is not None:  # travel spends force only while the motors have heat budget left
-            tg = travel.step(t, *tg, self.controller.thermal_headroom, finger_m=finger_m)
+            tg = travel.step(t, *tg, self.controller.thermal_headroom, finger_m=finger_m, gap_m=gap_m, normal=normal)
         if extra_force_robot is None:
             tau = self._compute(t, q1, q2, q3, w1, w2, w3, *tg)
         else:

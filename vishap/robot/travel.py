@@ -11,11 +11,20 @@ overshoot), plus the target's own velocity. Once the gap is closed the output *i
 finger followed at constant speed is followed without lag), so contact rendering is unchanged.
 
 The output's speed — the closing speed *and* the target's own velocity together — never exceeds
-``max_speed_m_s``. Near the finger it is capped further: given the distance from the device to the
-estimated fingertip (``finger_m`` of :meth:`TravelLimiter.step`), the cap falls linearly from
-``near_speed_m_s`` (0.25 m/s) at ``near_m`` (20 mm) to ``touch_speed_m_s`` (10 mm/s) 1 mm from it, so
-the device never sweeps past the finger fast and touches down slowly. The cap wins over the
-acceleration limit (a cap that falls faster than the device may brake is met at once).
+``max_speed_m_s``. Near the finger it is capped further, in two parts (``finger_m``, ``gap_m`` and
+``normal`` of :meth:`TravelLimiter.step`):
+
+* within ``near_m`` (20 mm) of the estimated fingertip the speed is at most ``near_speed_m_s``
+  (0.25 m/s), falling to it linearly from ``max_speed_m_s`` at twice that distance, so the device
+  never sweeps past the finger fast;
+* the speed *towards* the finger along the subject's normal falls linearly with the finger's height
+  over the device's face (``gap_m``) from ``near_speed_m_s`` at ``near_m`` to ``touch_speed_m_s``
+  (10 mm/s) at 1 mm, so the device touches down slowly.
+
+Sideways moves are left at 0.25 m/s near the finger: a cap on the 3-D distance slowed the device's
+last lateral correction and its run-up with the finger as much as the touch-down (docs/world.md).
+Without a normal the whole speed follows the normal cap's ramp in the 3-D distance. The caps win
+over the acceleration limit (a cap that falls faster than the device may brake is met at once).
 """
 from __future__ import annotations
 
@@ -76,19 +85,52 @@ class TravelLimiter:
         self._t = None
         self.ready = True
 
+    def anchor(self, px: float, py: float, pz: float, vx: float, vy: float, vz: float, L) -> None:
+        """Where the object gain ``L`` (3×3 robot frame, nested sequence) has released the servo, the
+        limiter's state follows the arm (``p``, ``v``): ``x ← x + (I − L)(p − x)``, the same for the
+        velocity. While the finger pushes the device in or drags it sideways the target stays on the
+        surface or under the finger's estimate; without this, the servo would take the device back to
+        it on the PD's spring the moment the gain returns (0.3–0.5 m/s a few millimetres from the
+        lifting finger); with it, the device goes back at the travel speeds and the caps near the
+        finger."""
+        r0, r1, r2 = L
+        if not self.ready or (r0[0] == r1[1] == r2[2] == 1.0 and r0[1] == r0[2] == r1[0] == r1[2] == r2[0] == r2[1] == 0.0):
+            return
+        x, v = self._x, self._v
+        ex, ey, ez = px - x[0], py - x[1], pz - x[2]
+        fx, fy, fz = vx - v[0], vy - v[1], vz - v[2]
+        self._x = (x[0] + ex - (r0[0] * ex + r0[1] * ey + r0[2] * ez), x[1] + ey - (r1[0] * ex + r1[1] * ey + r1[2] * ez),
+                   x[2] + ez - (r2[0] * ex + r2[1] * ey + r2[2] * ez))
+        self._v = (v[0] + fx - (r0[0] * fx + r0[1] * fy + r0[2] * fz), v[1] + fy - (r1[0] * fx + r1[1] * fy + r1[2] * fz),
+                   v[2] + fz - (r2[0] * fx + r2[1] * fy + r2[2] * fz))
+
     def cap_at(self, finger_m: float | None) -> float:
-        """The speed cap (m/s) at ``finger_m`` metres from the fingertip (None: unknown, ``max_speed``)."""
-        if finger_m is None or not math.isfinite(finger_m) or finger_m >= self.near_m:
+        """The speed cap (m/s) at ``finger_m`` metres from the fingertip (None: unknown, ``max_speed``):
+        ``near_speed`` within ``near_m``, rising linearly to ``max_speed`` at twice that."""
+        if finger_m is None or not math.isfinite(finger_m) or finger_m >= 2.0 * self.near_m:
             return self.max_speed
-        f = max(finger_m - TOUCH_M, 0.0) / (self.near_m - TOUCH_M)
+        f = max(finger_m - self.near_m, 0.0) / self.near_m
+        return min(self.max_speed, self.near_speed + f * (self.max_speed - self.near_speed))
+
+    def normal_cap_at(self, gap_m: float | None) -> float:
+        """The cap (m/s) on the speed towards the finger along the normal when its pad is ``gap_m``
+        over the device's face (None: unknown, ``max_speed``): ``near_speed`` at ``near_m`` falling
+        linearly to ``touch_speed`` at 1 mm (and down to 1 mm under the face; further under, none)."""
+        if gap_m is None or not math.isfinite(gap_m) or gap_m >= self.near_m or gap_m < -TOUCH_M:
+            return self.max_speed  # (a finger under the face: moving up the normal is moving away from it)
+        f = max(gap_m - TOUCH_M, 0.0) / (self.near_m - TOUCH_M)
         return min(self.max_speed, self.touch_speed + f * (self.near_speed - self.touch_speed))
 
     def step(self, t: float, x: float, y: float, z: float, vx: float, vy: float, vz: float, scale: float = 1.0,
-             finger_m: float | None = None):
+             finger_m: float | None = None, gap_m: float | None = None, normal=None):
         """The limited target ``(x, y, z, vx, vy, vz)`` at time ``t`` toward the shaped one.
 
         ``finger_m``: the distance (m) from the device to the estimated fingertip, if known; it
-        caps the output's speed near the finger (:meth:`cap_at`).
+        caps the output's speed near the finger (:meth:`cap_at`). ``gap_m`` and ``normal`` (a unit
+        3-vector): the finger's height over the device's face along the subject's normal; they cap
+        the speed towards the finger along it (:meth:`normal_cap_at`) while the finger is within
+        ``near_m``. With ``finger_m`` but no
+        normal, the whole speed is held to the normal cap at the distance ``finger_m``.
 
         ``scale`` (0…1) scales the acceleration limit: the servo passes the motors' thermal headroom,
         so travel spends force only while there is heat budget left for rendering contact (never below
@@ -110,6 +152,15 @@ class TravelLimiter:
         a = self.max_accel * min(1.0, max(scale, self.min_scale))
         # closing speed: linear near the target, the braking curve further out, capped
         cap = self.cap_at(finger_m)
+        if normal is None:
+            nx = ny = nz = 0.0
+            capn = math.inf
+            if finger_m is not None:
+                cap = min(cap, self.normal_cap_at(finger_m))
+        else:
+            nx, ny, nz = normal
+            near = finger_m is not None and finger_m < self.near_m  # (a finger beside the device is not over its face)
+            capn = self.normal_cap_at(gap_m) if near else math.inf
         self.speed_cap = cap
         s = min(self.max_speed, math.sqrt(2.0 * BRAKE * a * d), self.settle_gain * d)
         s = s / d if d > 1e-12 else 0.0
@@ -118,6 +169,10 @@ class TravelLimiter:
         if wn > cap:  # the output is never faster than the cap, the target's own velocity included
             k = cap / wn
             wx, wy, wz = wx * k, wy * k, wz * k
+        wn = wx * nx + wy * ny + wz * nz
+        if wn > capn:  # towards the finger along the normal: slower as the gap closes
+            wn -= capn
+            wx, wy, wz = wx - wn * nx, wy - wn * ny, wz - wn * nz
         dx, dy, dz = wx - ux, wy - uy, wz - uz
         dv = math.sqrt(dx * dx + dy * dy + dz * dz)
         lim = a * dt
@@ -129,6 +184,10 @@ class TravelLimiter:
         if un > cap:  # a cap that fell faster than the device may brake: met at once
             k = cap / un
             ux, uy, uz = ux * k, uy * k, uz * k
+        un = ux * nx + uy * ny + uz * nz
+        if un > capn:
+            un -= capn
+            ux, uy, uz = ux - un * nx, uy - un * ny, uz - un * nz
         self._x = (cx, cy, cz)
         self._v = (ux, uy, uz)
         return cx, cy, cz, ux, uy, uz

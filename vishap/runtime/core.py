@@ -242,25 +242,26 @@ class ContactRenderer:
 
 
 def finger_approach(rec: TargetRecord, t: float, p_device, normal):
-    """``(distance m, time to touch s)`` of the record's tracked finger (extrapolated to ``t``) from the
-    device's contact point: the travel limiter's speed cap and the object gain's early handover.
+    """``(distance m, time to touch s, height m)`` of the record's tracked finger (extrapolated to ``t``)
+    from the device's contact point: the travel limiter's speed caps and the object gain's early
+    handover. The height is the pad's over the device's face along ``normal`` (NaN without one).
 
     The time to touch is the pad's height over the device's face along the subject's ``normal``
     over its closing speed (0 once at or under the face; infinite when not closing, without a
     subject or without a finger estimate; NaN distance then too)."""
     ft = rec.finger_t
     if ft != ft:
-        return math.nan, math.inf
+        return math.nan, math.inf, math.nan
     el = t - ft
     f, v = rec.finger, rec.finger_velocity
     dx, dy, dz = f[0] + v[0] * el - p_device[0], f[1] + v[1] * el - p_device[1], f[2] + v[2] * el - p_device[2]
     dist = math.sqrt(dx * dx + dy * dy + dz * dz)
     if normal is None:
-        return dist, math.inf
+        return dist, math.inf, math.nan
     n = normal
     h = dx * n[0] + dy * n[1] + dz * n[2]
     closing = -(v[0] * n[0] + v[1] * n[1] + v[2] * n[2])
-    return dist, 0.0 if h <= 0.0 else h / closing if closing > 0.0 else math.inf
+    return dist, 0.0 if h <= 0.0 else h / closing if closing > 0.0 else math.inf, h
 
 
 @dataclass
@@ -345,12 +346,15 @@ class ServoStep:
             X_ee = np.array((gx, gy, gz))
         else:
             action, X_ee = "idle", None
-        finger_m, touch_in = finger_approach(rec, t, p_dev, None if rec.subject < 0 else self._normals[rec.subject])
+        normal = None if rec.subject < 0 else self._normals[rec.subject]
+        finger_m, touch_in, gap = finger_approach(rec, t, p_dev, normal)
         F_law, L, scale = self.contact.update(t, p_dev, dev.v_robot, rec.subject, rec.imminent, rec.in_contact, action,
                                               touch_in)
         self._rendering = F_law is not None
         ctrl = self.controller
         ctrl.set_lambda_robot(L)
+        if self.servo.travel is not None:  # travel resumes from the arm where Λ let go
+            self.servo.travel.anchor(*dev.p_robot, *dev.v_robot, L)
         ctrl.force_scale = scale
         # the shaper takes a new sample when its key changes: a new record's capture time while
         # tracking, the moment a retreat began while retreating, the previous key while holding
@@ -364,6 +368,7 @@ class ServoStep:
             key = self._key
         self._key, self.last_action = key, action
         extra = F_law if F_law is not None else self.contact.F_hold
-        self.servo.tick(t, None if key is None else X_ee, extra, t_sample=key, finger_m=finger_m)
+        self.servo.tick(t, None if key is None else X_ee, extra, t_sample=key, finger_m=finger_m, gap_m=gap,
+                        normal=normal)
         return ServoTick(action, X_ee, F_law, dev, p_dev, fault, self.contact.state_code, scale, finger_m, pressed,
                          touch_in)

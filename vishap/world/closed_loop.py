@@ -33,7 +33,7 @@ from vishap.world.scene import Scene
 from vishap.world.trajectories import FingerTrajectory
 from vishap.world.world import World
 
-__all__ = ["FingerPad", "VisionModel", "ApproachResult", "run_approach", "make_device"]
+__all__ = ["FingerPad", "VisionModel", "ApproachResult", "run_approach", "make_device", "device_ready", "ready_checks"]
 
 
 @dataclass
@@ -109,6 +109,7 @@ class ApproachResult:
     slide_friction_ratio: float | None = None  # median |F_t| / F_n while sliding (fabric: ≈ μ_k)
     log: dict | None = None
     ready: bool = False  # the device was ready at the first touch (:func:`device_ready`)
+    ready_checks: dict = field(default_factory=dict)  # each of its conditions (:func:`ready_checks`)
 
 
 def make_device(scene: Scene, *, substeps: int = 1, policy: str = "interpolate", travel: bool = True):
@@ -179,6 +180,7 @@ def run_approach(
     d_f = np.zeros(n_ticks)
     touching = np.zeros(n_ticks, dtype=bool)
     xd_log = np.empty((n_ticks, 3))
+    v_cmd = np.full((n_ticks, 3), np.nan)  # the travel limiter's output velocity
     t_contact, k_contact = None, 0
     touched = False
     cost = 0.0
@@ -213,6 +215,8 @@ def run_approach(
         dev[k] = p_dev
         v_dev[k] = state.v_robot
         xd_log[k] = np.asarray(rec.X_ee) + step.mount
+        if servo.travel is not None:
+            v_cmd[k] = servo.travel._v
         subj[k] = names[rec.subject] if rec.subject >= 0 else ""
         touching[k] = bool(F_pad.any())
         if t_contact is None and (touching[k] or d_f[k] >= 0.0):
@@ -223,8 +227,9 @@ def run_approach(
             break
     plant.check_state()
     dev, f_n, d_f, touching, subj, xd_log = dev[:n_ticks], f_n[:n_ticks], d_f[:n_ticks], touching[:n_ticks], subj[:n_ticks], xd_log[:n_ticks]
-    ready = t_contact is not None and device_ready(obj, dev[: k_contact + 1], v_dev[: k_contact + 1], P_f[k_contact],
-                                                   V_f[: k_contact + 1], half, dt)
+    checks = {} if t_contact is None else ready_checks(obj, dev[: k_contact + 1], v_dev[: k_contact + 1], P_f[k_contact],
+                                                         V_f[: k_contact + 1], half, dt)
+    ready = bool(checks) and all(checks.values())
 
     in_place, lead, err = False, None, None
     if t_contact is not None:
@@ -250,11 +255,12 @@ def run_approach(
     log = None
     if record:
         log = {"t": np.arange(n_ticks) * dt, "device": dev, "X_d": xd_log, "depth_finger": d_f, "force_n": f_n,
-               "touching": touching, "finger": P_f[:n_ticks]}
+               "touching": touching, "finger": P_f[:n_ticks],
+               "v_device": v_dev[:n_ticks], "v_command": v_cmd[:n_ticks], "v_finger": V_f[:n_ticks], "k_contact": k_contact}
     return ApproachResult(
         traj.object_name, obj.kind, traj.speed_m_s, t_contact, touched, in_place, lead, err,
         cost / max(n_ticks, 1) * 1e6, order, None if t_contact is None else subj[k_contact],
-        d_f[sel], f_n[sel], through, ratio, log, ready,
+        d_f[sel], f_n[sel], through, ratio, log, ready, checks,
     )
 
 
@@ -266,30 +272,35 @@ READY_FACE_M = 0.0005               # the face this close to the virtual surface
 READY_INSIDE_M = 0.010              # the finger landing this far inside the face's edge
 
 
-def device_ready(obj, p_device, v_device, p_touch, v_finger, half_size_m: float, dt: float) -> bool:
-    """Whether the device was ready when the finger first touched (the last row of each array).
+def ready_checks(obj, p_device, v_device, p_touch, v_finger, half_size_m: float, dt: float) -> dict[str, bool]:
+    """Each condition of "ready" when the finger first touched (the last row of each array).
 
     ``p_device``/``v_device``: the device's contact point (centre of the passive object's face) and
     velocity per tick up to the touch; ``v_finger`` the finger's velocity per tick; ``p_touch`` the
-    finger's pad at the touch; ``half_size_m`` the face's half width. All of: over the last
-    ``READY_WINDOW_S`` the device's normal speed ≤ 10 mm/s and its tangential speed relative to the
-    finger ≤ 20 mm/s; its face within 0.5 mm of the virtual surface along the normal; the touch point
-    at least 10 mm inside the face's edges."""
+    finger's pad at the touch; ``half_size_m`` the face's half width. ``still_normal``: over the last
+    ``READY_WINDOW_S`` the device's normal speed ≤ 10 mm/s; ``still_tangential``: its tangential speed
+    relative to the finger ≤ 20 mm/s; ``face``: its face within 0.5 mm of the virtual surface along
+    the normal; ``inside``: the touch point at least 10 mm inside the face's edges (never on a face
+    narrower than 20 mm)."""
     n_win = int(round(READY_WINDOW_S / dt))
     if len(p_device) < n_win + 1:
-        return False
+        return {"still_normal": False, "still_tangential": False, "face": False, "inside": False}
     n = np.asarray(obj.normal, float)
     v = np.asarray(v_device[-n_win - 1:], float)
     rel = v - np.asarray(v_finger[-n_win - 1:], float)
     v_n = np.abs(v @ n)
     rel_t = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
-    if np.any(v_n > READY_NORMAL_SPEED_M_S) or np.any(rel_t > READY_TANGENTIAL_SPEED_M_S):
-        return False
     p = np.asarray(p_device[-1], float)
-    if abs(obj.height(p)) > READY_FACE_M:
-        return False
     q = obj.R.T @ (np.asarray(p_touch, float) - p)  # the touch point in the face's frame, from its centre
-    return bool(max(abs(q[0]), abs(q[1])) <= half_size_m - READY_INSIDE_M)
+    return {"still_normal": bool(np.all(v_n <= READY_NORMAL_SPEED_M_S)),
+            "still_tangential": bool(np.all(rel_t <= READY_TANGENTIAL_SPEED_M_S)),
+            "face": bool(abs(obj.height(p)) <= READY_FACE_M),
+            "inside": bool(max(abs(q[0]), abs(q[1])) <= half_size_m - READY_INSIDE_M)}
+
+
+def device_ready(obj, p_device, v_device, p_touch, v_finger, half_size_m: float, dt: float) -> bool:
+    """Whether the device was ready when the finger first touched: every one of :func:`ready_checks`."""
+    return all(ready_checks(obj, p_device, v_device, p_touch, v_finger, half_size_m, dt).values())
 
 
 def _cuts_through(scene: Scene, dev: np.ndarray, subj: np.ndarray) -> bool:

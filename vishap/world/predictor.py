@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vishap._core.motion import min_jerk
+from vishap._core.motion import min_jerk, min_jerk_rate
 
 __all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "MeetingPoint", "PathExtrapolator", "ReachFit", "make_predictor", "contact_point", "PREDICTORS"]
 
@@ -303,10 +303,36 @@ class ReachFit(_SampleWindow):
     def reset(self) -> None:
         self.samples: list[tuple[float, np.ndarray]] = []
         self.t_touch: float | None = None
+        self._fit = None  # the weighted grid of the last fit: (t0, T, tangential coefficients, weights, R)
+
+    def tangential_at(self, t: float) -> np.ndarray | None:
+        """The fitted reach's tangential position (robot frame, m, relative to the fit's surface
+        centre) at time ``t``, averaged over the grid (None before a fit)."""
+        if self._fit is None:
+            return None
+        t0, TT, coef, pw, R = self._fit
+        m = min_jerk((t - t0) / TT)
+        uv = pw @ (coef[:, 0, :] + coef[:, 1, :] * m[:, None] + coef[:, 2, :] * (4.0 * m * (1.0 - m))[:, None])
+        return R[:, 0] * uv[0] + R[:, 1] * uv[1]
+
+    def tangential_velocity_at(self, t: float) -> np.ndarray | None:
+        """The fitted reach's tangential velocity (robot frame, m/s) at time ``t``, averaged over the
+        grid as the touch point is (None before a fit). A decelerating reach is modelled, so near the
+        end it is not the straight-line estimate's, which lags the deceleration by the latency."""
+        if self._fit is None:
+            return None
+        t0, TT, coef, pw, R = self._fit
+        s = (t - t0) / TT
+        m = min_jerk(s)
+        dm = min_jerk_rate(s) / TT
+        du = (coef[:, 1, :] + coef[:, 2, :] * (4.0 - 8.0 * m)[:, None]) * dm[:, None]
+        uv = pw @ du
+        return R[:, 0] * uv[0] + R[:, 1] * uv[1]
 
     def contact(self, centre, R_robot_obj) -> tuple[np.ndarray, float] | None:
         """(touch point on the surface plane (robot frame), variance m²) or None; sets ``t_touch``."""
         self.t_touch = None
+        self._fit = None
         if len(self.samples) < 4:
             return None
         samples = self.samples
@@ -361,4 +387,6 @@ class ReachFit(_SampleWindow):
         var += float(xt @ Ainv @ xt)
         tau = np.interp(mt, _M_TABLE, _TAU_TABLE)
         self.t_touch = float(pw @ (T0 + tau * TT))
+        keep = pw > 1e-4 * pw.max()  # the candidates that carry the average
+        self._fit = (T0[keep], TT[keep], coef[keep], pw[keep] / pw[keep].sum(), np.asarray(R_robot_obj, float))
         return centre + R_robot_obj[:, 0] * mean[0] + R_robot_obj[:, 1] * mean[1], var

@@ -11,7 +11,8 @@ At vision rate, :meth:`World.update` takes the fingertip in the robot frame and
    (``handover``: ``hold`` freezes that point once the finger is within ``hold_m``; ``blend``
    slides it towards the finger's present projection; ``track`` uses the present projection).
    A button's target is its top centre (VisHap §2.3). In contact, a ``follow`` mode tracks the
-   finger's projection (sliding);
+   finger's projection (sliding). Near the finger the device waits still on the landing point and
+   moves only as much as the landing needs, then runs up sideways with the finger (:class:`World`);
 5. routes the device around objects: if the straight path from the device to ``X_d`` would cut
    through any object's solid, ``X_d`` becomes a way-point above the obstacles.
 
@@ -76,6 +77,14 @@ class World:
     extrapolated in height; ``both``: the two fused by their variances; ``reach``: a minimum-jerk
     reach fitted to the samples, :class:`~vishap.world.predictor.ReachFit`; ``all``: ray, path and
     reach fused by their variances), ``engage_m`` (depth beyond which the mode's lateral contact gain applies).
+
+    The approach near the finger (issue 16's "ready at the touch"): within ``lock_m`` of the surface
+    the waiting point ignores moves under ``deadband_m``;
+    ``freeze_s`` before the touch (the reach fit's time; or within ``hold_m``) it is frozen and moves
+    only when the landing would leave half the finger's room on the passive face (``inside_m`` inside
+    its edge); over the last ``runup_s`` the target runs up sideways at the finger's fitted velocity so
+    that the finger lands on a face moving with it, timed for when the servo reaches the sample
+    (``latency_s`` + one sample interval + ``servo_lag_s``, the servo's own lag behind its target).
     """
 
     def __init__(
@@ -95,6 +104,12 @@ class World:
         clearance_m: float = 0.01,
         contact_model: str = "all",
         engage_m: float = 0.0003,
+        lock_m: float = 0.010,
+        freeze_s: float = 0.09,
+        servo_lag_s: float = 0.03,
+        inside_m: float = 0.010,
+        runup_s: float = 0.06,
+        deadband_m: float = 0.001,
     ):
         if contact_model not in CONTACT_MODELS:
             raise ValueError(f"contact_model must be one of {CONTACT_MODELS}, got {contact_model!r}")
@@ -114,6 +129,14 @@ class World:
         self.moving_m_s = 0.05  # finger speed above which a subject chosen by heading is kept
         self.path_margin_m, self.clearance_m = float(path_margin_m), float(clearance_m)
         self.meeting = MeetingPoint()
+        self.lock_m, self.runup_s = float(lock_m), float(runup_s)
+        self.freeze_s, self.servo_lag_s = float(freeze_s), float(servo_lag_s)
+        # the room the finger has on the passive face: how far from its centre it may land and still be
+        # ``inside_m`` inside its edge. Once frozen, the waiting point moves only when the landing would
+        # leave half of it (the other half is for the prediction's remaining error); the run-up never
+        # takes more than that half either. Before, near the finger, moves under ``deadband_m`` are noise.
+        self.replan_m = max(0.5 * (scene.passive_object.half_size_m - float(inside_m)), 0.0)
+        self.deadband_m = float(deadband_m)
         tops = [o.centre + o.R[:, :2] @ (o.half * np.array(s)) for o in scene.objects for s in
                 ((1, 1), (1, -1), (-1, 1), (-1, -1))]
         self.z_safe = float(max(p[2] for p in tops)) + self.clearance_m
@@ -122,7 +145,11 @@ class World:
     def reset(self) -> None:
         self.subject: SceneObject | None = None
         self.held: np.ndarray | None = None
+        self.plan: np.ndarray | None = None  # the landing point the device waits on near the finger
+        self._run = None  # the run-up's (touch time, tangential velocity)
         self.X_d: np.ndarray | None = None
+        self._t_last: float | None = None
+        self._interval = 0.0  # spacing of the finger samples (s)
         self.p_meas: np.ndarray | None = None  # the latest measured fingertip
         self.meeting.reset()
         self.path.reset()
@@ -136,9 +163,12 @@ class World:
         """Fuse one fingertip sample (robot frame, m; ``None`` when vision lost it) taken at ``t``."""
         if p_robot_finger is not None:
             p_robot_finger = as_array(p_robot_finger, (3,), "p_robot_finger")
+        if self._t_last is not None and 0.0 < t - self._t_last < 0.2:
+            self._interval = t - self._t_last
+        self._t_last = t
         self.predictor.observe(t, p_robot_finger)
         self.path.observe(t, p_robot_finger)
-        if self.contact_model in ("reach", "all"):
+        if self.contact_model in ("reach", "all") or self.runup_s > 0.0:
             self.reach.observe(t, p_robot_finger)
         if p_robot_finger is not None:
             self.p_meas = p_robot_finger
@@ -172,7 +202,16 @@ class World:
             if reach is not None:
                 c = self.meeting.update(reach[0], 0.0, reach[1], 0.0)
             c = subj.project(c)
-        X = self._target(subj, p, c, h, in_contact and self._touch_confirmed(subj, p_robot_device))
+        confirmed = in_contact and self._touch_confirmed(subj, p_robot_device)
+        # near the finger: under the lock height (or time), and above the surface or, when the extrapolated
+        # finger is already under it, over the object itself (a finger passing beside it is not landing)
+        near = h < self.lock_m and (
+            h > -self.contact_margin_m or subj.inside_extent(p, self.path_margin_m))
+        t_left = tau if self.reach.t_touch is None or not near else self.reach.t_touch - t - self.latency_s
+        frozen = near and (h < self.hold_m or (t_left is not None and t_left < self.freeze_s))
+        X = self._target(subj, p, c, h, confirmed, near, frozen)
+        if not confirmed and self.runup_s > 0.0 and self.replan_m > 0.0 and subj.mode.target != "centre" and near:
+            X = X + self._runup(t, subj, reach)
         via = False
         start = p_robot_device if p_robot_device is not None else self.X_d
         if start is not None:
@@ -217,9 +256,31 @@ class World:
 
     def _set_subject(self, obj: SceneObject) -> SceneObject:
         if obj is not self.subject:
-            self.subject, self.held = obj, None
+            self.subject, self.held, self.plan = obj, None, None
             self.meeting.reset()
         return obj
+
+    def _runup(self, t: float, subj: SceneObject, reach) -> np.ndarray:
+        """The device's tangential run-up before the touch: it moves sideways at the finger's own
+        tangential velocity at the touch (the fitted reach, :class:`ReachFit`) over the last
+        ``runup_s`` before it, ending on the landing point, so that the finger lands on a face that
+        moves with it instead of sliding onto a still one. The run-up (touch time and velocity) is
+        frozen with the meeting point. The offset is for the time the servo reaches this sample: its
+        age (``latency_s``) plus one sample interval (the servo interpolates towards the newest sample
+        over one interval). Zero without a fit; never longer than the re-plan room (none on a face with
+        no room to land off its centre)."""
+        if self._run is None or self.held is None:
+            if reach is None and self.p_meas is not None and subj.height(self.p_meas) > 0.0:
+                reach = self.reach.contact(subj.centre, subj.R)
+            tt = self.reach.t_touch
+            if reach is None or tt is None:
+                return np.zeros(3)
+            self._run = (tt, self.reach.tangential_velocity_at(tt))
+        tt, v = self._run
+        t_use = t + self.latency_s + self._interval + self.servo_lag_s
+        du = v * float(np.clip(t_use - tt, -self.runup_s, self.runup_s))
+        n = float(np.linalg.norm(du))
+        return du * (self.replan_m / n) if n > self.replan_m else du
 
     def _touch_confirmed(self, subj: SceneObject, p_robot_device) -> bool:
         """The touch seen, not only predicted: the latest *measured* fingertip is at the surface or the
@@ -229,23 +290,34 @@ class World:
             return True
         return p_robot_device is not None and subj.height(np.asarray(p_robot_device, dtype=float)) < -self.engage_m
 
-    def _target(self, subj: SceneObject, p, c, h: float, in_contact: bool) -> np.ndarray:
+    def _target(self, subj: SceneObject, p, c, h: float, in_contact: bool, near: bool = False,
+                frozen: bool | None = None) -> np.ndarray:
         if subj.mode.target == "centre":
             return subj.centre.copy()
         proj = subj.project(p)
         if in_contact:
-            self.held = None
+            self.held = self.plan = None
             return proj
         if self.handover == "track":
             return proj
         if self.handover == "blend":
             w = np.clip((h - self.hold_m) / max(self.imminent_m - self.hold_m, 1e-9), 0.0, 1.0)
             return w * c + (1.0 - w) * proj
-        if h < self.hold_m and h > -self.contact_margin_m:  # hold the meeting point, do not chase noise
+        if frozen is None:
+            frozen = self.hold_m > h > -self.contact_margin_m
+        if frozen:  # hold the meeting point, do not chase noise (nor the extrapolated finger under the surface)
             if self.held is None:
-                self.held = c
+                self.held = c if self.plan is None else self.plan
+            elif self.replan_m > 0.0 and _tangential(c - self.held, subj.normal) > self.replan_m:
+                self.held, self._run = c, None  # re-planned only to keep the finger on the face
             return self.held.copy()
         self.held = None
+        self._run = None
+        if near:  # near the finger: move only when the landing needs it
+            if self.plan is None or _tangential(c - self.plan, subj.normal) > self.deadband_m:
+                self.plan = c
+            return self.plan.copy()
+        self.plan = None
         return c
 
     def _route(self, start: np.ndarray, X: np.ndarray, subj: SceneObject) -> np.ndarray:
@@ -286,3 +358,8 @@ class World:
             for o in self.scene.objects
             if not o.segment_hits(a, a, margin=0.0, top_clearance=-0.0005)
         )
+
+
+def _tangential(d, normal) -> float:
+    """Length of ``d``'s part along the surface of unit ``normal``."""
+    return float(np.linalg.norm(d - normal * float(normal @ d)))
