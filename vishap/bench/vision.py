@@ -6,6 +6,9 @@ would pick instead, on the same labelled frames.
   torch/kornia batch backend (checked mask-for-mask against NumPy/OpenCV), and OpenCV's MOG2, KNN,
   CNT and GSOC background subtractors with the same skin model and median filter;
 * stereo: sparse rectified triangulation against dense StereoBM / StereoSGBM sampled at the tip;
+* 3-D tip: the masks' cap fits, the disparity filter, and refinements on the images (sub-pixel
+  edges per view or jointly, ZNCC along the rectified row), with the error decomposed by depth
+  (``vision_stereo_refinement.png``);
 * Kalman: this filter against ``cv2.KalmanFilter`` and filterpy on the same measurements.
 
 Data: ``--data DIR...`` (folders written by ``vishap synth``); default a 70-frame wall sequence
@@ -134,6 +137,72 @@ def _bench_pipeline(folder, n, skin):
                                        "tip3d_rms_mm", "tip3d_median_mm", "detection_rate", "false_detections",
                                        "track_losses", "visible_frames")}
     return out
+
+
+def refinement_variants() -> dict:
+    """The 3-D tip's variants charted against each other (speed against 3-D RMS): the masks' cap
+    centres as before, the disparity filter, a median of 3 (paper: 5), and the stereo refinements on the
+    images (stereo.RefineConfig) a user would pick instead."""
+    from vishap.vision.pipeline import PipelineConfig
+    from vishap.vision.segment import SegmentConfig
+    from vishap.vision.stereo import RefineConfig
+
+    return {
+        "mask cap fits (before: no disparity filter)": PipelineConfig(disparity_q=0),
+        "mask cap fits + disparity filter (shipped)": PipelineConfig(),
+        "mask cap fits, median 3 + disparity filter": PipelineConfig(segment=SegmentConfig(coarse=4, median=3)),
+        "sub-pixel image edges, a circle per view": PipelineConfig(refine=RefineConfig(method="edges_separate")),
+        "sub-pixel image edges, joint fit (shared row, radius)": PipelineConfig(refine=RefineConfig(method="edges")),
+        "ZNCC of the left cap along the right row": PipelineConfig(refine=RefineConfig(method="match")),
+        "ZNCC, disk-masked template": PipelineConfig(refine=RefineConfig(method="match", match_masked=True)),
+    }
+
+
+def _bench_refinement(folder, n, skin, quick=False):
+    """Each variant of :func:`refinement_variants` over the same frames: 3-D RMS (all frames with
+    the tip visible and found, and without gross errors), the error decomposition by depth, ms."""
+    from vishap.vision.evaluate import evaluate_sequence
+
+    out = {}
+    variants = refinement_variants()
+    if quick:  # before and shipped only
+        variants = {k: v for i, (k, v) in enumerate(variants.items()) if i in (0, 1)}
+    for name, cfg in variants.items():
+        r = evaluate_sequence(folder, skin_model=skin, config=cfg, max_frames=n, seg_every=10 ** 9)
+        out[name] = {k: r.get(k) for k in ("ms_per_pair", "ms_per_pair_tracked", "ms_per_pair_full", "tip2d_rms_px",
+                                           "tip3d_rms_mm", "tip3d_rms_mm_without_gross", "gross_errors",
+                                           "tip3d_median_mm", "detection_rate", "visible_frames", "by_depth")}
+    return out
+
+
+def _chart_refinement(record, path):
+    fig, (a1, a2) = new_figure(1, 2, figsize=(14, 5.5))
+    seqs = {k: v for k, v in record["sequences"].items() if "refinement" in v}
+    for sname, rec in seqs.items():
+        tag = f"{sname}: " if len(seqs) > 1 else ""
+        for k, (name, r) in enumerate(rec["refinement"].items()):
+            x, y = r.get("ms_per_pair_tracked") or r.get("ms_per_pair"), r.get("tip3d_rms_mm_without_gross")
+            if x is None or y is None:
+                continue
+            a1.scatter(x, y, marker="os^vD<>"[k % 7])
+            a1.annotate(f"{tag}{name} ({r['gross_errors']} gross)", (x, y), fontsize=7)
+        names = list(rec["refinement"])
+        for k, name in enumerate(names[:2]):
+            bd = rec["refinement"][name]["by_depth"] or {}
+            bins = list(bd)
+            xs = np.arange(len(bins)) + 0.4 * k
+            a2.bar(xs - 0.3, [bd[b]["u_left_px"] or 0 for b in bins], 0.12, label=f"{tag}{name[:28]}…: u left")
+            a2.bar(xs - 0.18, [bd[b]["u_right_px"] or 0 for b in bins], 0.12, label="u right")
+            a2.bar(xs - 0.06, [bd[b]["disparity_px"] or 0 for b in bins], 0.12, label="disparity")
+            a2.set_xticks(np.arange(len(bins)), [f"{b} m" for b in bins])
+    a1.axhline(1.5, color="k", lw=0.6, ls=":")
+    a1.set(xlabel="ms per tracked stereo pair (median)", ylabel="tip 3-D RMS without gross errors, mm",
+           title="3-D fingertip: cap fits, disparity filter, stereo refinements")
+    a2.set(ylabel="RMS, px (rectified)", title="Error decomposition by true depth (before | shipped)")
+    a1.grid(alpha=0.3)
+    a2.grid(alpha=0.3)
+    a2.legend(fontsize=7)
+    return save_figure(fig, path)
 
 
 def _bench_stereo(seq, frames, skin, learn):
@@ -315,11 +384,13 @@ def run(args: argparse.Namespace) -> dict:
                 continue
             rec = {"frames": len(frames), "skin_model": skin.source}
             rec["pipeline"] = _bench_pipeline(folder, args.frames, skin)
+            rec["refinement"] = _bench_refinement(folder, args.frames, skin, args.quick)
             rec["segmentation"] = _bench_segmentation(frames, learn, skin, args.quick)
             rec["stereo"] = _bench_stereo(seq, frames, skin, learn)
             rec["kalman"] = _bench_kalman(seq.gt, rng)
             record["sequences"][folder.name] = rec
     record["chart"] = str(_chart(record, out_dir / "vision_speed_accuracy.png"))
+    record["chart_refinement"] = str(_chart_refinement(record, out_dir / "vision_stereo_refinement.png"))
     record["detector_constants"] = _bench_detector_constants(rng)
     record["chart_detector_constants"] = str(_chart_constants(record["detector_constants"],
                                                               out_dir / "vision_detector_constants.png"))

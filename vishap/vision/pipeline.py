@@ -32,7 +32,8 @@ __all__ = ["PipelineConfig", "TipEstimate", "VisionPipeline"]
 
 @dataclass(frozen=True)
 class PipelineConfig:
-    segment: SegmentConfig = field(default_factory=SegmentConfig)
+    segment: SegmentConfig = field(default_factory=lambda: SegmentConfig(coarse=4))  # full frames through
+    #   the coarse skin pass: the same masks on the standard sequences, several times less time per full frame
     fingertip: FingertipConfig = field(default_factory=FingertipConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)

@@ -153,13 +153,13 @@ class RefineConfig:
 
     method: str = "none"
     rays: int = 31                  # profiles across the cap's edge, spread over span_deg around the front
-    span_deg: float = 200.0         # the cap in front of its centre, a little past the sides
+    span_deg: float = 180.0         # the cap in front of its centre
     half_width_px: float = 3.0      # each profile runs ± this across the expected edge
     step_px: float = 0.25
     min_contrast: float = 15.0      # finger against background, colour distance (0…441) along a profile
     max_shift_px: float = 1.5       # a refined centre further than this from the mask's fit is rejected
-    core_deg: float = 60.0          # the first circle uses the edge points within this angle of the front
-    max_residual_px: float = 0.5    # edge points further than this from a view's circle are dropped
+    core_deg: float = 90.0          # the first circle uses the edge points within this angle of the front
+    max_residual_px: float = 1.0    # edge points further than this from a view's circle are dropped
     min_points: int = 8             # edge points needed per view
     match_search_px: int = 3        # "match": disparity searched ± this around the masks' disparity
     match_masked: bool = False
