@@ -255,11 +255,13 @@ class VisionPipeline:
             kf = KalmanCV(1, q=cfg.disparity_q, r=2 * cfg.stereo.sigma_px ** 2)
             kf.reset([disparity_px])
         self._disp_kf, self._disp_t = kf, t
-        rl, rr = (self.rig.rectify_points(np.asarray(self.trackers[s].kf.position).reshape(1, 2), s)[0]
-                  for s in ("left", "right"))
-        v = 0.5 * (rl[1] + rr[1])
-        out = triangulate_rectified_tip(self.rig, (rl[0], v), (rl[0] - kf.x[0], v), self.config.stereo)
-        return out if out.ok else spf
+        d = float(kf.x[0])
+        if not d * spf.disparity_px > 0:
+            return spf
+        # rectified with zero disparity at infinity (Q[3, 3] = 0): the point scales with 1/disparity
+        # along its ray, so the pair's point is moved, not triangulated again
+        scale = spf.disparity_px / d
+        return replace(spf, p_cam=spf.p_cam * scale, cov_cam=spf.cov_cam * scale ** 2, disparity_px=d)
 
     def _refine_pair(self, images, tl, tr, sp):
         """The chosen pair's cap centres refined on the images (stereo.refine_tip_pair); the masks'
