@@ -186,19 +186,21 @@ def _chart_refinement(record, path):
                 continue
             a1.scatter(x, y, marker="os^vD<>"[k % 7])
             a1.annotate(f"{tag}{name} ({r['gross_errors']} gross)", (x, y), fontsize=7)
-        names = list(rec["refinement"])
-        for k, name in enumerate(names[:2]):
+    if seqs:  # the decomposition of the first sequence: before against shipped
+        sname, rec = next(iter(seqs.items()))
+        for k, name in enumerate(list(rec["refinement"])[:2]):
             bd = rec["refinement"][name]["by_depth"] or {}
-            bins = list(bd)
-            xs = np.arange(len(bins)) + 0.4 * k
-            a2.bar(xs - 0.3, [bd[b]["u_left_px"] or 0 for b in bins], 0.12, label=f"{tag}{name[:28]}…: u left")
-            a2.bar(xs - 0.18, [bd[b]["u_right_px"] or 0 for b in bins], 0.12, label="u right")
-            a2.bar(xs - 0.06, [bd[b]["disparity_px"] or 0 for b in bins], 0.12, label="disparity")
-            a2.set_xticks(np.arange(len(bins)), [f"{b} m" for b in bins])
+            xs = np.arange(len(bd))
+            for j, (key, label) in enumerate((("u_left_px", "u left"), ("u_right_px", "u right"),
+                                               ("disparity_px", "disparity"))):
+                a2.bar(xs + 0.13 * (3 * k + j) - 0.35, [bd[b][key] or 0 for b in bd], 0.12, color=f"C{j}",
+                       hatch="//" if k else None, label=f"{label} ({'after' if k else 'before'})")
+            a2.set_xticks(xs, [f"{b} m ({bd[b]['frames']} frames)" for b in bd])
+        a2.set_title(f"{sname}: error decomposition by true depth (plain: before, hatched: shipped)", fontsize=9)
     a1.axhline(1.5, color="k", lw=0.6, ls=":")
     a1.set(xlabel="ms per tracked stereo pair (median)", ylabel="tip 3-D RMS without gross errors, mm",
            title="3-D fingertip: cap fits, disparity filter, stereo refinements")
-    a2.set(ylabel="RMS, px (rectified)", title="Error decomposition by true depth (before | shipped)")
+    a2.set(ylabel="RMS of the reported tips, px (rectified)")
     a1.grid(alpha=0.3)
     a2.grid(alpha=0.3)
     a2.legend(fontsize=7)

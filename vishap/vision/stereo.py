@@ -144,11 +144,15 @@ def dense_tip(matcher: DenseMatcher, left: np.ndarray, right: np.ndarray, uv_lef
 class RefineConfig:
     """Stereo refinement of the cap centres (:func:`refine_tip_pair`).
 
-    ``method``: ``"edges"`` (default) — the cap's silhouette located to a fraction of a pixel in
-    each image (colour profiles across the edge) and one circle pair fitted to both views with a
-    shared rectified row and radius; ``"edges_separate"`` — the same edges, a circle per view;
-    ``"match"`` — ZNCC of the left cap patch along the right rectified row, sub-pixel by a parabola
-    (``match_masked``: only the left view's skin pixels of the patch count); ``"none"``.
+    ``method``: ``"none"`` (default: the masks' cap fits); ``"edges"`` — the cap's silhouette
+    located to a fraction of a pixel in each image (colour profiles across the edge) and one circle
+    pair fitted to both views with a shared rectified row and radius; ``"edges_separate"`` — the
+    same edges, a circle per view; ``"match"`` — ZNCC of the left cap patch along the right
+    rectified row, sub-pixel by a parabola (``match_masked``: only the template's inscribed disk
+    counts). Off by default: on anti-aliased pairs the edges recover the disparity to a few
+    hundredths of a pixel, but on the renderer's pixel-quantised silhouettes they are worse than
+    the masks, and the match measures the finger's surface, in front of the cap's centre
+    (docs/vision.md, "3-D fingertip accuracy").
     """
 
     method: str = "none"
