@@ -221,8 +221,9 @@ class Segmenter:
         regions (a lone sample is skipped). A skin region over ``2·coarse`` pixels wide always has
         neighbouring samples, and the margin covers the tile neighbourhood and the median filter, so
         the mask equals the one of the whole region except for skin specks a few pixels wide, which
-        the median filter mostly removes and which cannot hold a fingertip (measured: the same masks
-        on the standard sequences, docs/vision.md)."""
+        the median filter mostly removes and which cannot hold a fingertip, and slivers that the
+        region's own edge cuts off the hand (measured: the same masks over the full frames of the
+        standard sequences, docs/vision.md)."""
         c = self.config
         x0, y0, x1, y1 = roi
         k = c.coarse
@@ -240,8 +241,11 @@ class Segmenter:
             sk = cv2.dilate(sk, np.ones((2 * c.coarse_margin + 1,) * 2, np.uint8))
         n, _, stats, _ = cv2.connectedComponentsWithStats(sk, connectivity=8)
         for bx, by, bw, bh, _area in stats[1:]:
-            box = snap_roi((x0 + bx * k, y0 + by * k, x0 + (bx + bw) * k, y0 + (by + bh) * k), c.tile, self.image_size)
-            bx0, by0, bx1, by1 = box
+            bx0, by0, bx1, by1 = snap_roi((x0 + bx * k, y0 + by * k, x0 + (bx + bw) * k, y0 + (by + bh) * k),
+                                          c.tile, self.image_size)
+            # within the region (tile-aligned, so the box stays tile-aligned)
+            bx0, by0, bx1, by1 = max(bx0, x0), max(by0, y0), min(bx1, x1), min(by1, y1)
+            box = (bx0, by0, bx1, by1)
             if bx1 <= bx0 or by1 <= by0:
                 continue
             hsv = cv2.cvtColor(image[by0:by1, bx0:bx1], cv2.COLOR_BGR2HSV)
