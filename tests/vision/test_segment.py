@@ -101,6 +101,36 @@ def test_sparse_tiles_give_exactly_the_dense_mask(toy, cfg):
         assert a.any() and np.array_equal(a, b)
 
 
+@pytest.mark.parametrize("coarse", [2, 4])
+def test_coarse_skin_pass_gives_the_same_mask(toy, coarse):
+    import cv2
+
+    """The coarse pass segments only around skin found on a subsampled image: the same mask as the
+    plain path over the whole frame, on a frame with the hand and the arm and on one with scattered skin-hued specks
+    (lone samples start no region, but a speck beside the hand is kept by the full-resolution pass)."""
+    bg, fr, skin = toy
+    plain = Segmenter(skin, SegmentConfig(coarse_min_px=0))
+    fast = Segmenter(skin, SegmentConfig(coarse=coarse, coarse_min_px=0))
+    for seg in (plain, fast):
+        seg.learn([f.left for f in bg])
+    specks = fr.left.copy()
+    ys, xs = np.random.default_rng(0).integers(0, 240, 40), np.random.default_rng(1).integers(0, 320, 40)
+    specks[ys, xs] = (120, 150, 215)  # single skin-coloured pixels: removed by the median either way
+    for img in (fr.left, specks):
+        a, b = plain.segment(img), fast.segment(img)
+        assert a.any() and np.array_equal(a, b)
+        for roi in ((60, 40, 263, 203), (0, 0, 170, 120), (150, 100, 320, 240)):  # regions that cut the hand
+            # a region's edge can leave a sliver of skin narrower than two samples, which the coarse
+            # pass does not see; nothing a fingertip's test circle (radius ≥ 4 px) fits in is lost
+            a, b = plain.segment(img, roi), fast.segment(img, roi)
+            disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (9, 9))
+            assert a.shape == b.shape and np.array_equal(cv2.erode(a, disk), cv2.erode(b, disk))
+            assert np.count_nonzero(b & ~a) == 0  # it never adds skin
+    assert not fast.segment(bg[0].left).any()  # nothing skin-like: no box at all
+    with pytest.raises(VisionError, match="coarse"):
+        SegmentConfig(coarse=0)
+
+
 @pytest.mark.parametrize("cfg", [SegmentConfig(), SegmentConfig(bins=16, sat_bins=4, median=3, dilate_tiles=0)])
 def test_torch_batch_backend_gives_the_same_masks(toy, cfg):
     pytest.importorskip("kornia")

@@ -6,6 +6,9 @@ would pick instead, on the same labelled frames.
   torch/kornia batch backend (checked mask-for-mask against NumPy/OpenCV), and OpenCV's MOG2, KNN,
   CNT and GSOC background subtractors with the same skin model and median filter;
 * stereo: sparse rectified triangulation against dense StereoBM / StereoSGBM sampled at the tip;
+* 3-D tip: the masks' cap fits, the disparity filter, and refinements on the images (sub-pixel
+  edges per view or jointly, ZNCC along the rectified row), with the error decomposed by depth
+  (``vision_stereo_refinement.png``);
 * Kalman: this filter against ``cv2.KalmanFilter`` and filterpy on the same measurements.
 
 Data: ``--data DIR...`` (folders written by ``vishap synth``); default a 70-frame wall sequence
@@ -134,6 +137,74 @@ def _bench_pipeline(folder, n, skin):
                                        "tip3d_rms_mm", "tip3d_median_mm", "detection_rate", "false_detections",
                                        "track_losses", "visible_frames")}
     return out
+
+
+def refinement_variants() -> dict:
+    """The 3-D tip's variants charted against each other (speed against 3-D RMS): the masks' cap
+    centres as before, the disparity filter, a median of 3 (paper: 5), and the stereo refinements on the
+    images (stereo.RefineConfig) a user would pick instead."""
+    from vishap.vision.pipeline import PipelineConfig
+    from vishap.vision.segment import SegmentConfig
+    from vishap.vision.stereo import RefineConfig
+
+    return {
+        "mask cap fits (before: no disparity filter)": PipelineConfig(disparity_q=0),
+        "mask cap fits + disparity filter (shipped)": PipelineConfig(),
+        "mask cap fits, median 3 + disparity filter": PipelineConfig(segment=SegmentConfig(coarse=4, median=3)),
+        "sub-pixel image edges, a circle per view": PipelineConfig(refine=RefineConfig(method="edges_separate")),
+        "sub-pixel image edges, joint fit (shared row, radius)": PipelineConfig(refine=RefineConfig(method="edges")),
+        "ZNCC of the left cap along the right row": PipelineConfig(refine=RefineConfig(method="match")),
+        "ZNCC, disk-masked template": PipelineConfig(refine=RefineConfig(method="match", match_masked=True)),
+    }
+
+
+def _bench_refinement(folder, n, skin, quick=False):
+    """Each variant of :func:`refinement_variants` over the same frames: 3-D RMS (all frames with
+    the tip visible and found, and without gross errors), the error decomposition by depth, ms."""
+    from vishap.vision.evaluate import evaluate_sequence
+
+    out = {}
+    variants = refinement_variants()
+    if quick:  # before and shipped only
+        variants = {k: v for i, (k, v) in enumerate(variants.items()) if i in (0, 1)}
+    for name, cfg in variants.items():
+        r = evaluate_sequence(folder, skin_model=skin, config=cfg, max_frames=n, seg_every=10 ** 9)
+        out[name] = {k: r.get(k) for k in ("ms_per_pair", "ms_per_pair_tracked", "ms_per_pair_full", "tip2d_rms_px",
+                                           "tip3d_rms_mm", "tip3d_rms_mm_without_gross", "gross_errors",
+                                           "tip3d_median_mm", "detection_rate", "visible_frames", "by_depth")}
+    return out
+
+
+def _chart_refinement(record, path):
+    fig, (a1, a2) = new_figure(1, 2, figsize=(14, 5.5))
+    seqs = {k: v for k, v in record["sequences"].items() if "refinement" in v}
+    for sname, rec in seqs.items():
+        tag = f"{sname}: " if len(seqs) > 1 else ""
+        for k, (name, r) in enumerate(rec["refinement"].items()):
+            x, y = r.get("ms_per_pair_tracked") or r.get("ms_per_pair"), r.get("tip3d_rms_mm_without_gross")
+            if x is None or y is None:
+                continue
+            a1.scatter(x, y, marker="os^vD<>"[k % 7])
+            a1.annotate(f"{tag}{name} ({r['gross_errors']} gross)", (x, y), fontsize=7)
+    if seqs:  # the decomposition of the first sequence: before against shipped
+        sname, rec = next(iter(seqs.items()))
+        for k, name in enumerate(list(rec["refinement"])[:2]):
+            bd = rec["refinement"][name]["by_depth"] or {}
+            xs = np.arange(len(bd))
+            for j, (key, label) in enumerate((("u_left_px", "u left"), ("u_right_px", "u right"),
+                                               ("disparity_px", "disparity"))):
+                a2.bar(xs + 0.13 * (3 * k + j) - 0.35, [bd[b][key] or 0 for b in bd], 0.12, color=f"C{j}",
+                       hatch="//" if k else None, label=f"{label} ({'after' if k else 'before'})")
+            a2.set_xticks(xs, [f"{b} m ({bd[b]['frames']} frames)" for b in bd])
+        a2.set_title(f"{sname}: error decomposition by true depth (plain: before, hatched: shipped)", fontsize=9)
+    a1.axhline(1.5, color="k", lw=0.6, ls=":")
+    a1.set(xlabel="ms per tracked stereo pair (median)", ylabel="tip 3-D RMS without gross errors, mm",
+           title="3-D fingertip: cap fits, disparity filter, stereo refinements")
+    a2.set(ylabel="RMS of the reported tips, px (rectified)")
+    a1.grid(alpha=0.3)
+    a2.grid(alpha=0.3)
+    a2.legend(fontsize=7)
+    return save_figure(fig, path)
 
 
 def _bench_stereo(seq, frames, skin, learn):
@@ -309,16 +380,17 @@ def run(args: argparse.Namespace) -> dict:
         from vishap._core.results import progress
 
         folders = [Path(d) for d in args.data] if args.data else _default_data(Path(tmp))
-        bar = progress(total=4 * len(folders), desc="bench vision", unit="stage", quiet=getattr(args, "quiet", False))
+        bar = progress(total=5 * len(folders), desc="bench vision", unit="stage", quiet=getattr(args, "quiet", False))
         for folder in folders:
             seq, frames = _load(folder, args.frames)
             learn = int(seq.gt.get("hand_free_frames", 10))
             if len(frames) < learn + 5:
                 record["sequences"][folder.name] = {"skipped": f"{len(frames)} frames: fewer than {learn} background + 5"}
-                bar.update(4)
+                bar.update(5)
                 continue
             rec = {"frames": len(frames), "skin_model": skin.source}
             for stage, measure in (("pipeline", lambda: _bench_pipeline(folder, args.frames, skin)),
+                                   ("refinement", lambda: _bench_refinement(folder, args.frames, skin, args.quick)),
                                    ("segmentation", lambda: _bench_segmentation(frames, learn, skin, args.quick)),
                                    ("stereo", lambda: _bench_stereo(seq, frames, skin, learn)),
                                    ("kalman", lambda: _bench_kalman(seq.gt, rng))):
@@ -328,6 +400,7 @@ def run(args: argparse.Namespace) -> dict:
             record["sequences"][folder.name] = rec
         bar.close()
     record["chart"] = str(_chart(record, out_dir / "vision_speed_accuracy.png"))
+    record["chart_refinement"] = str(_chart_refinement(record, out_dir / "vision_stereo_refinement.png"))
     record["detector_constants"] = _bench_detector_constants(rng)
     record["chart_detector_constants"] = str(_chart_constants(record["detector_constants"],
                                                               out_dir / "vision_detector_constants.png"))

@@ -132,10 +132,50 @@ def evaluate_sequence(folder, *, skin_model: SkinModel | None = None, config: Pi
     for i, ml, mr in frames_for_seg:
         f = seq[i]
         masks_counts += segmentation_ratios(ml, f.labels_left) + segmentation_ratios(mr, f.labels_right)
-    return score(estimates, gt, masks_counts, keep_tracks=keep_tracks) | {"frames": n, "folder": str(folder)}
+    return score(estimates, gt, masks_counts, keep_tracks=keep_tracks, rig=seq.rig) | {"frames": n, "folder": str(folder)}
 
 
-def score(estimates, gt: dict, seg_counts: np.ndarray, *, keep_tracks: bool = False) -> dict:
+DEPTH_BINS_M = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 1.0)
+GROSS_MM = 10.0  # a 3-D error above this is a wrong finger or a lost cap, not the noise of a fit
+
+
+def error_by_depth(estimates, gt: dict, rig, frames) -> dict:
+    """Where the 3-D error comes from, per depth bin (``DEPTH_BINS_M``, true depth): RMS of the
+    rectified column and row errors of each view, of the disparity error (the difference of the two
+    columns' errors), the 3-D error split into depth and lateral parts, and the 3-D RMS with and
+    without gross errors (above ``GROSS_MM``). Image errors are of the reported (filtered) tips;
+    the 3-D point may use a disparity filtered on its own (PipelineConfig.disparity_q), so the
+    depth error is not always the disparity error times z²/(f·B)."""
+    rows = []
+    for i in frames:
+        e = estimates[i]
+        el = rig.rectify_points(np.vstack([e.uv_left, gt["tip_uv_left"][i]]), "left")
+        er = rig.rectify_points(np.vstack([e.uv_right, gt["tip_uv_right"][i]]), "right")
+        dl, dr = el[0] - el[1], er[0] - er[1]
+        p, g = np.asarray(e.p_cam), np.asarray(gt["tip_cam"][i])
+        rows.append((g[2], dl[0], dl[1], dr[0], dr[1], dl[0] - dr[0], p[2] - g[2], np.hypot(*(p[:2] - g[:2])),
+                     np.linalg.norm(p - g)))
+    a = np.array(rows).reshape(-1, 9)
+    rms = lambda x: float(np.sqrt(np.mean(np.square(x)))) if len(x) else None
+    out = {}
+    for lo, hi in zip(DEPTH_BINS_M[:-1], DEPTH_BINS_M[1:]):
+        sel = (a[:, 0] >= lo) & (a[:, 0] < hi)
+        if not sel.any():
+            continue
+        b = a[sel]
+        fine = b[b[:, 8] * 1e3 <= GROSS_MM]
+        out[f"{lo:.1f}-{hi:.1f}"] = {
+            "frames": int(sel.sum()), "gross": int(len(b) - len(fine)),
+            "u_left_px": rms(fine[:, 1]), "v_left_px": rms(fine[:, 2]), "u_right_px": rms(fine[:, 3]),
+            "v_right_px": rms(fine[:, 4]), "disparity_px": rms(fine[:, 5]),
+            "depth_mm": None if not len(fine) else rms(fine[:, 6]) * 1e3,
+            "lateral_mm": None if not len(fine) else rms(fine[:, 7]) * 1e3,
+            "tip3d_rms_mm": rms(b[:, 8]) * 1e3,
+            "tip3d_rms_mm_without_gross": None if not len(fine) else rms(fine[:, 8]) * 1e3}
+    return out
+
+
+def score(estimates, gt: dict, seg_counts: np.ndarray, *, keep_tracks: bool = False, rig=None) -> dict:
     n = len(estimates)
     vis_l = np.asarray(gt.get("tip_visible_left", np.ones(n, bool)))[:n].astype(bool)
     vis_r = np.asarray(gt.get("tip_visible_right", np.ones(n, bool)))[:n].astype(bool)
@@ -172,6 +212,9 @@ def score(estimates, gt: dict, seg_counts: np.ndarray, *, keep_tracks: bool = Fa
         "tip2d_p95_px": float(np.percentile(np.abs(e2), 95)) if len(e2) else None,
         "tip3d_rms_mm": float(np.sqrt(np.mean(e3 ** 2)) * 1e3) if len(e3) else None,
         "tip3d_median_mm": float(np.median(e3) * 1e3) if len(e3) else None,
+        "tip3d_rms_mm_without_gross": (float(np.sqrt(np.mean(np.square(e3[e3 * 1e3 <= GROSS_MM]))) * 1e3)
+                                       if np.any(e3 * 1e3 <= GROSS_MM) else None),
+        "gross_errors": int(np.count_nonzero(e3 * 1e3 > GROSS_MM)),
         "depth_range_m": [float(z.min()), float(z.max())] if len(z) else None,
         "detection_rate": (float(np.count_nonzero(visible & found) / np.count_nonzero(visible))
                            if np.any(visible) else None),  # no frame shows the tip: undefined, not 0
@@ -187,6 +230,8 @@ def score(estimates, gt: dict, seg_counts: np.ndarray, *, keep_tracks: bool = Fa
     }
     if "phase" in gt and "phase_names" in gt:
         out["by_phase"] = _by_phase(estimates, gt, visible, found)
+    if rig is not None and len(e3):
+        out["by_depth"] = error_by_depth(estimates, gt, rig, np.flatnonzero(visible & found))
     if keep_tracks:
         out["tracks"] = [track_record(e) for e in estimates]
     return out

@@ -49,12 +49,18 @@ class SegmentConfig:
     achromatic_bin: bool = True     # own bin for pixels whose hue is undefined
     min_saturation: int = 40        # achromatic gate (0…255)
     min_value: int = 30
+    coarse: int = 1                 # > 1: a large region is first skin-tested on every coarse-th pixel of every
+    #   coarse-th row, and segmented at full resolution only around the skin found (see Segmenter.segment)
+    coarse_margin: int = 3          # … plus this many coarse pixels around it
+    coarse_min_px: int = 160 * 160  # … for regions of at least this many pixels (a tracking window is smaller)
 
     def __post_init__(self) -> None:
         if self.bins * self.sat_bins > 254:
             raise VisionError(f"bins × sat_bins must be below 255, got {self.bins * self.sat_bins}")
         if self.tile < 1 or self.bins < 1 or self.sat_bins < 1:
             raise VisionError(f"tile and bins must be positive, got tile={self.tile} bins={self.bins}")
+        if self.coarse < 1 or self.coarse_margin < 0:
+            raise VisionError(f"coarse must be ≥ 1 and coarse_margin ≥ 0, got {self.coarse}, {self.coarse_margin}")
         if self.median < 1 or self.median % 2 == 0:
             raise VisionError(f"median aperture must be odd and positive, got {self.median}")
         if not (0.0 < self.match_threshold <= 1.0):
@@ -203,8 +209,50 @@ class Segmenter:
         x0, y0, x1, y1 = roi
         if x1 <= x0 or y1 <= y0:
             return np.zeros((max(0, y1 - y0), max(0, x1 - x0)), np.uint8)
+        if c.coarse > 1 and method == "sparse" and (x1 - x0) * (y1 - y0) >= c.coarse_min_px:
+            return self._segment_coarse(image, roi)
         hsv = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_BGR2HSV)
         return self.segment_hsv(hsv, roi, method=method)
+
+    def _segment_coarse(self, image: np.ndarray, roi) -> np.ndarray:
+        """:meth:`segment` of a large region through a coarse pass: the skin test on a subsampled
+        image (every ``coarse``-th pixel), its skin regions widened by ``coarse_margin`` coarse
+        pixels, and the full-resolution segmentation run only in the tile-aligned boxes of those
+        regions (a lone sample is skipped). A skin region over ``2·coarse`` pixels wide always has
+        neighbouring samples, and the margin covers the tile neighbourhood and the median filter, so
+        the mask equals the one of the whole region except for skin specks a few pixels wide, which
+        the median filter mostly removes and which cannot hold a fingertip, and slivers that the
+        region's own edge cuts off the hand (measured: the same masks over the full frames of the
+        standard sequences, docs/vision.md)."""
+        c = self.config
+        x0, y0, x1, y1 = roi
+        k = c.coarse
+        small = image[y0:y1:k, x0:x1:k]
+        sk = self.skin.mask_hsv(cv2.cvtColor(small, cv2.COLOR_BGR2HSV))
+        out = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        # a lone skin sample (sensor noise on a skin-like background) starts no box: a region that
+        # can hold a fingertip (a disk over 2·coarse pixels wide) has neighbouring samples
+        near = cv2.boxFilter(cv2.threshold(sk, 0, 1, cv2.THRESH_BINARY)[1], -1, (3, 3), normalize=False,
+                             borderType=cv2.BORDER_CONSTANT)
+        sk = cv2.bitwise_and(sk, sk, mask=(near >= 2).view(np.uint8))
+        if not sk.any():
+            return out
+        if c.coarse_margin:
+            sk = cv2.dilate(sk, np.ones((2 * c.coarse_margin + 1,) * 2, np.uint8))
+        n, _, stats, _ = cv2.connectedComponentsWithStats(sk, connectivity=8)
+        for bx, by, bw, bh, _area in stats[1:]:
+            bx0, by0, bx1, by1 = snap_roi((x0 + bx * k, y0 + by * k, x0 + (bx + bw) * k, y0 + (by + bh) * k),
+                                          c.tile, self.image_size)
+            # within the region (tile-aligned, so the box stays tile-aligned)
+            bx0, by0, bx1, by1 = max(bx0, x0), max(by0, y0), min(bx1, x1), min(by1, y1)
+            box = (bx0, by0, bx1, by1)
+            if bx1 <= bx0 or by1 <= by0:
+                continue
+            hsv = cv2.cvtColor(image[by0:by1, bx0:bx1], cv2.COLOR_BGR2HSV)
+            m = self.segment_hsv(hsv, box)
+            dst = out[by0 - y0: by1 - y0, bx0 - x0: bx1 - x0]
+            cv2.bitwise_or(dst, m, dst=dst)
+        return out
 
     def segment_hsv(self, hsv: np.ndarray, roi: tuple[int, int, int, int], *, method: str = "sparse") -> np.ndarray:
         """Skin mask of an HSV region. ``method="sparse"`` (default) builds histograms only for the
