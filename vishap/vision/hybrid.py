@@ -62,6 +62,7 @@ class HybridConfig:
     template: bool = True          # when the cap fit fails, follow the fingertip's patch (normalised cross-correlation)
     template_radii: float = 2.0    # half-side of that patch, in cap radii
     min_ncc: float = 0.9           # weaker matches are misses (train video: 0.7 → PCK@30 0.88, 0.9 → 0.95, same time)
+    max_template_run: int = 1      # patch-followed frames in a row before the learned model looks again (see below)
     # a hand-held camera swings the whole image: more acceleration noise than a still rig's default
     tracker: TrackerConfig = TrackerConfig(q_px=2e5, r_px=1.0)
 
@@ -190,6 +191,7 @@ class HybridDetector:
         self._cap_at_find: np.ndarray | None = None
         self._have_colour = False
         self._template: np.ndarray | None = None
+        self._template_run = 0
 
     # ------------------------------------------------------------------ the two halves
     def _skin_mask(self, win: np.ndarray) -> np.ndarray:
@@ -262,6 +264,7 @@ class HybridDetector:
         timings.update(tm)
         self._since_find = 0
         self._misses = 0
+        self._template_run = 0
         if hand is None:
             self.tracker = TipTracker(self.config.tracker)
             self._cap_at_find = None
@@ -290,7 +293,7 @@ class HybridDetector:
         sig = float(np.sqrt(max(self.tracker.kf.P[0, 0], self.tracker.kf.P[1, 1])))
         fit = self._fit(image, pred, self._radius, self._direction, extra_px=2.0 * sig)
         mode = "tracked"
-        if fit is None and self._template is not None:
+        if fit is None and self._template is not None and self._template_run < self.config.max_template_run:
             uv = self._match(image, pred, extra_px=2.0 * sig)
             if uv is not None:
                 fit, mode = _Fit(uv, self._radius, self._direction.copy()), "tracked_template"
@@ -306,6 +309,7 @@ class HybridDetector:
                                  radius_px=self._radius, direction=self._direction.copy(),
                                  confidence=self.tracker.confidence, mode="predicted")
         self._misses = 0
+        self._template_run = self._template_run + 1 if mode == "tracked_template" else 0
         self.tracker.update(t, fit.cap_uv)
         # the radius and direction drift slowly: smooth them so one noisy fit cannot derail the next window
         self._radius = 0.7 * self._radius + 0.3 * fit.radius
