@@ -399,7 +399,7 @@ class LearnedDetector:
         the landmark model's presence score (see :class:`LearnedConfig`)."""
         c = self.config
         t0 = time.perf_counter()
-        palms = [(score, -k, rect) for k, z in enumerate(c.palm_zooms)
+        palms = [(score, k, rect) for k, z in enumerate(c.palm_zooms)
                  for rect, score in self.model.detect_palms(rgb, max_palms=c.palm_candidates,
                                                             min_score=c.min_palm_score, zoom=z)]
         palms.sort(key=lambda p: (-p[0], p[1]))  # ties: the smaller zoom first
