@@ -3,13 +3,17 @@
 * **photos**: every labelled real photo as an independent frame (each detector reset before each):
   detection rate, PCK@10/20/30 and median error of ``tip_end_uv`` against the annotated tip, the
   same for ``cap_uv``, and the median time per frame, for ``learned`` (palm + landmark networks on
-  the full frame) and ``hybrid`` (the same, then the geometric cap fit);
+  the full frame) and ``hybrid`` (the same, then the geometric cap fit), and, as the "before" of
+  the same run, ``learned_mediapipe_palm_rule`` (MediaPipe's choice of the hand: the best palm box
+  on the letterboxed frame if it scores ≥ 0.5; ``vishap.vision.learned.MEDIAPIPE_PALM_RULE``);
 * **video**: the photos in file order as one 30 fps video (the train split is made of consecutive
   frames of short clips, with a jump to another moment about every 11 frames), the detectors
   interleaved frame by frame so they share the machine's load: ``learned`` (image mode),
   ``learned_video`` (MediaPipe's video mode: the landmark network on the region the last landmarks
   give, the palm network only when that loses the hand) and ``hybrid`` (window tracking between
-  re-checks), plus the hybrid's re-check interval swept;
+  re-checks), plus the hybrid's re-check interval swept, and the "before" of the same run:
+  ``learned_video_mediapipe_palm_rule`` and ``hybrid_before`` (that palm rule, and the patch
+  follower with no limit on its run of frames);
 * **peer** (``--mediapipe-task FILE``, where the ``mediapipe`` package is importable, e.g. in a separate
   environment): MediaPipe's own HandLandmarker in image and video mode beside them;
 * **moving photo**: a few photos moved along a smooth path (a video whose every frame has a known
@@ -187,14 +191,20 @@ def run(args: argparse.Namespace) -> dict:
     items = _load_labels(Path(args.data), args.every)
     dt = 1 / 30
 
-    def make(kind: str, **options):
+    def make(kind: str, before: bool = False, **options):
+        # before=True: MediaPipe's palm rule (best box ≥ 0.5, one zoom), and for the hybrid the patch
+        # follower without a limit on its run: the detectors as they were before the hand recovery
+        lc = L.LearnedConfig(mode="video" if kind == "hybrid" else kind, **(L.MEDIAPIPE_PALM_RULE if before else {}))
         if kind == "hybrid":
-            return HybridDetector(HybridConfig(**options))
-        return L.LearnedDetector(L.LearnedConfig(mode=kind))
+            if before:
+                options.setdefault("max_template_run", 10 ** 6)
+            return HybridDetector(HybridConfig(**options), learned=L.LearnedDetector(lc))
+        return L.LearnedDetector(lc)
 
     # ---------------------------------------------------------------- photos
     peers = _mediapipe_peers(getattr(args, "mediapipe_task", None))
-    photo_dets = {"learned": make("image"), "hybrid": make("hybrid")}
+    photo_dets = {"learned": make("image"), "hybrid": make("hybrid"),
+                  "learned_mediapipe_palm_rule": make("image", before=True)}
     if peers:
         photo_dets["mediapipe_image"] = peers["mediapipe_image"]
     from vishap._core.results import progress
@@ -210,7 +220,9 @@ def run(args: argparse.Namespace) -> dict:
 
     # ---------------------------------------------------------------- video: the photos in order
     recheck = [int(x) for x in str(args.recheck).split(",") if x]
-    video_dets = {"learned": make("image"), "learned_video": make("video"), "hybrid": make("hybrid")}
+    video_dets = {"learned": make("image"), "learned_video": make("video"), "hybrid": make("hybrid"),
+                  "learned_video_mediapipe_palm_rule": make("video", before=True),
+                  "hybrid_before": make("hybrid", before=True)}
     if peers:
         video_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
     for n in recheck:
@@ -303,5 +315,7 @@ def _chart(rec: dict, path: Path) -> None:
 def _colour(name: str) -> str:
     if name.startswith("hybrid_recheck"):
         return "tab:orange"
+    if name.endswith("_palm_rule") or name.endswith("_before"):
+        return "tab:gray"
     return {"learned": "tab:blue", "learned_video": "tab:purple", "hybrid": "tab:red",
             "mediapipe_image": "tab:green", "mediapipe_video": "tab:olive"}.get(name, "grey")

@@ -70,7 +70,18 @@ def _variants(extra: str | None) -> dict:
         names = [n.strip() for n in extra.split(",") if n.strip()]
     for n in names:
         out[n] = lambda n=n: make_detector(n)
+    if "learned" in names:  # the "before" of the hand recovery, in the same run
+        out["learned, MediaPipe's palm rule"] = _learned_mediapipe_rule
     return out
+
+
+def _learned_mediapipe_rule():
+    from vishap._core.errors import ConfigError
+    from vishap.vision import learned as L
+
+    if not L.runtime_available():
+        raise ConfigError(L.INSTALL_HINT)
+    return L.LearnedDetector(L.LearnedConfig(**L.MEDIAPIPE_PALM_RULE))
 
 
 def synth_labels(folder: Path, out_csv: Path, frames: int | None = None) -> Path:
