@@ -189,3 +189,18 @@ def test_a_finger_landing_on_the_encoder_device_makes_contact_once():
     assert ic[-1] and int(np.count_nonzero(np.diff(ic.astype(int)) == 1)) == 1
     assert 0.0 < float(sv["F_contact"][-1][2]) < 2.0  # pressed 0.8 mm into the wall: the law pushes back
 
+
+
+def test_scene_step_takes_visions_lost_report_and_falls_back_to_a_dropped_track():
+    scene = load_scene("wall")
+    step = SceneStep(World(scene, predictor="none"), np.eye(4), tip_radius_m=0.008, mount_offset=(0.03, 0.0, 0.0))
+    assert not step.step(0.0, True, [0.2, 0.0, -0.12], 1.0, None)[0].lost
+    # vision says the finger is gone while its tracker still coasts (confidence 0.6): lost
+    assert step.step(1 / 30, False, np.full(3, np.nan), 0.6, None, lost=True)[0].lost
+    # vision says a hidden fingertip is not a loss: not lost
+    assert not step.step(2 / 30, False, np.full(3, np.nan), 0.6, None, lost=False)[0].lost
+    # a source with no report (a camera model, an old log): lost once the tracker's confidence is 0
+    assert not step.step(3 / 30, False, np.full(3, np.nan), 0.36, None)[0].lost
+    assert step.step(4 / 30, False, np.full(3, np.nan), 0.0, None)[0].lost
+    # a fix is never lost, whatever the report
+    assert not step.step(5 / 30, True, [0.2, 0.0, -0.12], 1.0, None, lost=True)[0].lost

@@ -130,3 +130,32 @@ def test_disparity_filter_lowers_the_depth_noise_of_a_still_finger(setup):
     assert abs(np.mean(depth[1e3]) - np.mean(depth[0.0])) < 0.001 and abs(np.mean(depth[1e3]) - p[2]) < 0.005
     # white noise through this constant-velocity filter keeps 0.69 of its standard deviation (35 frames here)
     assert np.std(depth[1e3]) < 0.85 * np.std(depth[0.0]), (np.std(depth[0.0]), np.std(depth[1e3]))
+
+
+def test_vision_reports_the_finger_lost_on_the_first_frame_without_it_but_not_a_hidden_tip(setup):
+    """``lost`` (what the guard holds on within one servo tick) is set on the first frame without the
+    hand; a fingertip hidden by something grey, with the finger still in the window, is a miss the
+    tracker coasts through, not a loss."""
+    import cv2
+
+    rig, skin = setup
+    for hide in ("hand", "tip"):
+        scene = ToyScene(rig, seed=5)
+        pipe = VisionPipeline(rig, skin_model=skin, config=PipelineConfig(learn_frames=4))
+        for i in range(4):
+            pipe.process(StereoFrame(i, i / 30, *_pair(scene.frame(i / 30, _traj(0), hand=False))))
+        for i in range(4, 16):
+            est = pipe.process(StereoFrame(i, i / 30, *_pair(scene.frame(i / 30, _traj(i)))))
+            assert not est.lost
+        assert est.found
+        f = scene.frame(16 / 30, _traj(16), hand=hide == "tip")
+        left, right = f.left.copy(), f.right.copy()
+        if hide == "tip":
+            r_px = rig.K_left[0, 0] * 0.008 / f.tip_cam[2]
+            for img, uv in ((left, f.tip_uv_left), (right, f.tip_uv_right)):
+                cv2.circle(img, tuple(int(round(x)) for x in uv), int(round(1.6 * r_px)), (60, 60, 62), -1)
+        est = pipe.process(StereoFrame(16, 16 / 30, left, right))
+        if hide == "hand":
+            assert not est.found and est.lost
+        else:
+            assert not est.lost, est.reason

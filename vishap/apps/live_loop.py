@@ -225,8 +225,8 @@ def _frame_to_target_ms(vis: dict) -> float | None:
 
 def _dropped_row(t, k, mount, state) -> dict:
     nan2, nan3 = np.full(2, np.nan), np.full(3, np.nan)
-    return {"t": t, "index": k, "dropped": True, "found": False, "p_cam": nan3, "uv_left": nan2, "uv_right": nan2,
-            "confidence": 0.0, "vision_ms": np.nan, "available_at": np.nan, "tip_cam_true": nan3,
+    return {"t": t, "index": k, "dropped": True, "found": False, "lost": False, "p_cam": nan3, "uv_left": nan2,
+            "uv_right": nan2, "confidence": 0.0, "vision_ms": np.nan, "available_at": np.nan, "tip_cam_true": nan3,
             "tip_robot_true": nan3, "tip_visible": False, "hand_visible": False, "render_ms": np.nan,
             "device_q": nan3, "device_ee": state[1:4] - mount, "segment_ms": np.nan, "detect_ms": np.nan,
             "stereo_ms": np.nan}
@@ -310,7 +310,7 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
             c0 = time.perf_counter()
             rec, inter, p_pad = scene_step.step(t, res["found"], res["p_cam"], res["confidence"],
                                                 p_dev if state[0] > 0 else None,
-                                                calibrated=T is not None)
+                                                calibrated=T is not None, lost=res["lost"])
             world_ms = 1e3 * (time.perf_counter() - c0)
             servo.write_target(np.append(rec.pack(), offset))
             now = servo.now()  # the record is published: the frame's age is now - t
@@ -325,7 +325,7 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
                 # vision and the world (imports, allocations) can take seconds on a loaded machine
                 anchor[:] = [frame.t, time.monotonic()]
                 offset = frame.t - servo.now()
-            vis_ch.append(t=t, index=k, dropped=False, found=res["found"], p_cam=res["p_cam"], uv_left=res["uv_left"],
+            vis_ch.append(t=t, index=k, dropped=False, found=res["found"], lost=res["lost"], p_cam=res["p_cam"], uv_left=res["uv_left"],
                           uv_right=res["uv_right"], confidence=res["confidence"], vision_ms=res["vision_ms"],
                           available_at=now, tip_cam_true=tip_cam,
                           tip_robot_true=np.full(3, np.nan) if g is None else np.asarray(gt["tip_robot"][g], float),

@@ -112,7 +112,7 @@ class Demo:
             write_frame_png(self.out / "frames", "left", k, pair.left)
             write_frame_png(self.out / "frames", "right", k, pair.right)
         dropped = self._fault("frames_dropped", t)
-        row = {"t": t, "index": k, "dropped": dropped, "found": False, "p_cam": np.full(3, np.nan),
+        row = {"t": t, "index": k, "dropped": dropped, "found": False, "lost": False, "p_cam": np.full(3, np.nan),
                "uv_left": np.full(2, np.nan), "uv_right": np.full(2, np.nan), "confidence": 0.0,
                "vision_ms": np.nan, "available_at": np.nan, "tip_cam_true": tip_cam, "tip_robot_true": tip,
                "tip_visible": tip_vis, "hand_visible": visible, "render_ms": 1e3 * (c1 - c0),
@@ -132,7 +132,7 @@ class Demo:
                 if f.kind == "vision_stalled" and f.active(t):
                     available = max(available, f.t_end + self.cfg.vision_latency_s)
             self.pending.append((available, {"t": t, "index": k, **res}))
-            row.update(found=res["found"], p_cam=res["p_cam"], uv_left=res["uv_left"], uv_right=res["uv_right"],
+            row.update(found=res["found"], lost=res["lost"], p_cam=res["p_cam"], uv_left=res["uv_left"], uv_right=res["uv_right"],
                        confidence=res["confidence"], vision_ms=res["vision_ms"], available_at=available,
                        **_stage_ms(est.timings))
         self.log.channel("vision").append(**row)
@@ -177,9 +177,9 @@ class Demo:
         st = self.st
         _, p_dev = st.cycle.step.read()
         calibrated = not self._fault("calibration_missing", t)
-        # the tracker's confidence drops with consecutive misses
+        # the tracker's confidence drops with consecutive misses; vision says when the finger is gone
         rec, inter, p_pad = st.scene_step.step(r["t"], r["found"], r["p_cam"], r["confidence"], p_dev,
-                                               calibrated=calibrated)
+                                               calibrated=calibrated, lost=r["lost"])
         self.target = rec
         log_scene_row(self.log, t, rec, inter, p_pad, p_dev, st.mount_offset, 1e3 * (time.perf_counter() - c0))
         self.wall["scene"] += time.perf_counter() - c0

@@ -114,7 +114,7 @@ def replay(log_path, *, out=None, atol: float = 0.0, progress: bool = False) -> 
     for i in bar(range(len(v["t"])), desc="replay", unit="frame", quiet=not progress):
         t, k = float(v["t"][i]), int(v["index"][i])
         if bool(v["dropped"][i]):
-            res = {"found": False, "p_cam": np.full(3, np.nan), "uv_left": np.full(2, np.nan),
+            res = {"found": False, "lost": False, "p_cam": np.full(3, np.nan), "uv_left": np.full(2, np.nan),
                    "uv_right": np.full(2, np.nan), "confidence": 0.0}
         else:
             res = vision_result(pipe.process(StereoFrame(k, t, read_frame_png(frames, "left", k),
@@ -122,10 +122,11 @@ def replay(log_path, *, out=None, atol: float = 0.0, progress: bool = False) -> 
             if cfg.fault_active("nan", t) and res["found"]:
                 res["p_cam"] = np.full(3, np.nan)
         by_t[t] = res
-        new.channel("vision").append(t=t, found=res["found"], p_cam=res["p_cam"], uv_left=res["uv_left"],
-                                     uv_right=res["uv_right"], confidence=res["confidence"])
+        new.channel("vision").append(t=t, found=res["found"], lost=res["lost"], p_cam=res["p_cam"],
+                                     uv_left=res["uv_left"], uv_right=res["uv_right"], confidence=res["confidence"])
     nv = new.channel("vision").arrays()
-    report["vision"] = compare(v, nv, ["found", "p_cam", "uv_left", "uv_right", "confidence"], atol)
+    report["vision"] = compare(v, nv, [k for k in ("found", "lost", "p_cam", "uv_left", "uv_right", "confidence")
+                                       if k in v], atol)
 
     # -- scene step and the servo step's force law, in the logged order ------------------------------
     from vishap.apps.loop import log_scene_row
@@ -145,7 +146,8 @@ def replay(log_path, *, out=None, atol: float = 0.0, progress: bool = False) -> 
         if kind == 0:
             r = by_t[float(s["t_sample"][i])]
             rec, inter, p_pad = scene_step.step(float(s["t_sample"][i]), r["found"], r["p_cam"], r["confidence"],
-                                                s["device_point"][i], calibrated=bool(s["calibrated"][i]))
+                                                s["device_point"][i], calibrated=bool(s["calibrated"][i]),
+                                                lost=r["lost"])
             records[rec.seq] = rec
             log_scene_row(new, t, rec, inter, p_pad, s["device_point"][i], mount, 0.0)
         else:

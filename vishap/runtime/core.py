@@ -54,10 +54,10 @@ class TargetRecord:
     ``seq`` counts records (0: none yet); ``armed`` is false until the first finger estimate (or a
     calibration fault) arrives — until then the servo holds the arm where it is. ``subject`` is the
     index of the subject in the scene's objects (−1: none). ``finger``/``finger_velocity`` are the
-    world's estimate of the pad point at ``finger_t`` (NaN when it has none). ``lost``: vision found
-    no fingertip and its tracker has dropped the track (confidence 0; the guard holds at once) — a
-    frame missed while the track still coasts is not a loss (docs/runtime.md: holding on every
-    missed frame parks the device where it hides the finger). ``valid`` is not packed: :meth:`unpack`
+    world's estimate of the pad point at ``finger_t`` (NaN when it has none). ``lost``: vision
+    reports the finger gone (no fingertip and no skin where it searched, or a dropped track; the
+    guard holds at once) — a fingertip hidden while the finger is still there is not a loss
+    (docs/runtime.md: holding on every missed frame parks the device where it hides the finger). ``valid`` is not packed: :meth:`unpack`
     sets it false for values no scene step writes (an all-zero record among them).
     """
 
@@ -122,7 +122,8 @@ class SceneStep:
         T = self.T
         return np.asarray(p_cam, float) @ T[:3, :3].T + T[:3, 3] - self.tip_radius_m * self.normal
 
-    def step(self, t_sample: float, found: bool, p_cam, confidence: float, p_device, *, calibrated: bool = True):
+    def step(self, t_sample: float, found: bool, p_cam, confidence: float, p_device, *, calibrated: bool = True,
+             lost: bool | None = None):
         """One estimate captured at ``t_sample`` → ``(record, interaction or None, pad point)``.
 
         ``p_device`` is the device's contact point (end-effector + mount offset). Without a
@@ -152,8 +153,16 @@ class SceneStep:
         self.seq += 1
         s, imminent, in_contact = self._flags
         self.record = TargetRecord(self.seq, X, float(t_sample), float(confidence), calibrated, self.armed,
-                                   s, imminent, in_contact, finger, v_f, t_f, lost=not found and not confidence > 0.0)
+                                   s, imminent, in_contact, finger, v_f, t_f, lost=self._lost(found, confidence, lost))
         return self.record, inter, p_pad
+
+    @staticmethod
+    def _lost(found: bool, confidence: float, lost: bool | None) -> bool:
+        """Vision's report that the finger is gone (``lost``, from the pipeline); sources that give
+        none (a camera model, an old log) count a finger lost once the tracker's confidence is 0."""
+        if found:
+            return False
+        return bool(lost) if lost is not None else not confidence > 0.0
 
 
 class ContactRenderer:

@@ -12,8 +12,8 @@ target the controller may use and the action taken:
 - ``retreat`` the trouble has lasted longer than ``retreat_after_s``, or there is no calibration:
               move to the retreat point, away from where a finger could be.
 
-Vision says "lost" explicitly (its tracker dropped the track), and the guard holds on the first
-servo tick that sees it; the confidence floor catches a track that still coasts through missed
+Vision says "lost" explicitly (no skin left where it searched, or a dropped track), and the guard
+holds on the first servo tick that sees it; the confidence floor catches a track that still coasts through missed
 frames (four at 30 Hz, about 117 ms). Holding on every missed frame was measured to park the
 device where it hides the fingertip from a camera (docs/runtime.md), so a single miss is not a loss.
 

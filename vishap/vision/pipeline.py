@@ -90,6 +90,9 @@ class TipEstimate:
     timings: dict = field(default_factory=dict)
     mode: str = "full"              # "learning", "full", "tracked" or "recheck" (left camera)
     reason: str = ""
+    lost: bool = False              # no fingertip, and the finger is gone: no skin where both views searched
+    #   for it, or a view's tracker dropped its track (a fingertip merely hidden, by the device or the
+    #   object, leaves the rest of the finger in the window: not lost, the track coasts)
 
 
 class VisionPipeline:
@@ -193,6 +196,7 @@ class VisionPipeline:
         cands, modes = {}, {}
         self._window_tips = set()
         self._refine_ms = 0.0
+        self._skin_px = {}
         for side, img in (("left", frame.left), ("right", frame.right)):
             cands[side], modes[side] = self._detect(side, img, t, timings)
         t1 = time.perf_counter()
@@ -233,7 +237,17 @@ class VisionPipeline:
             self._p3, self._t3 = np.asarray(sp.p_cam, dtype=np.float64), t
             return TipEstimate(t, True, sp.p_cam, sp.cov_cam, found["left"], found["right"], conf, timings, modes["left"])
         reason = sp.reason + (f"; {self.background_warning}" if self.background_warning else "")
-        return TipEstimate(t, False, None, None, found["left"], found["right"], conf, timings, modes["left"], reason)
+        return TipEstimate(t, False, None, None, found["left"], found["right"], conf, timings, modes["left"], reason,
+                           lost=self._finger_gone())
+
+    def _finger_gone(self) -> bool:
+        """Whether a frame without a fingertip means the finger is gone: a view's tracker dropped its
+        track, or neither view's search region holds half a fingertip cap's area of skin."""
+        if not all(self.trackers[s].tracking for s in ("left", "right")):
+            return True
+        r = self.K / (self._z if self._z is not None else self.config.z_default_m)
+        cap_px = np.pi * r * r
+        return all(self._skin_px.get(s, 0) < 0.5 * cap_px for s in ("left", "right"))
 
     def _filter_disparity(self, spf: StereoPoint, disparity_px: float, t: float) -> StereoPoint:
         """The filtered pair ``spf`` with its disparity replaced by a constant-velocity Kalman
@@ -490,6 +504,7 @@ class VisionPipeline:
         roi = snap_roi(roi, seg.config.tile, self._size)
         ts = time.perf_counter()
         mask = seg.segment(image, roi)
+        self._skin_px[side] = int(np.count_nonzero(mask))
         td = time.perf_counter()
         prior = None if pred is None or mode == "recheck" else pred - roi[:2]
         n_max = 1 if mode == "tracked" else cfg.max_candidates
