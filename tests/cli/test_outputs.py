@@ -83,6 +83,11 @@ def test_progress_with_an_eta_only_on_a_terminal_and_not_when_quiet(toy, tmp_pat
     assert main(["track", str(toy), "--out", str(tmp_path / "a.json")]) == 0
     assert "/16 [" not in capsys.readouterr().err  # a log or a pipe gets no bar
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    # redraw on every frame: the toy's 16 frames can pass within tqdm's default 0.1 s between redraws
+    from tqdm import tqdm
+
+    init = tqdm.__init__
+    monkeypatch.setattr(tqdm, "__init__", lambda self, *a, **kw: init(self, *a, **{**kw, "mininterval": 0}))
     assert main(["track", str(toy), "--out", str(tmp_path / "b.json")]) == 0
     err = capsys.readouterr().err
     assert re.search(r"track: .* \d+/16 \[\d\d:\d\d<\d\d:\d\d", err), err  # elapsed<remaining: the ETA
