@@ -329,6 +329,18 @@ def test_bench_shows_progress_over_its_cases(tmp_path, capsys, monkeypatch):
     assert "tracking.json" in captured.out and "{" not in captured.out
 
 
+def test_bench_registration_shows_progress_over_its_parts(tmp_path, capsys, monkeypatch):
+    from tqdm import tqdm
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    init = tqdm.__init__  # redraw on every part, however quick
+    monkeypatch.setattr(tqdm, "__init__", lambda self, *a, **kw: init(self, *a, **{**kw, "mininterval": 0}))
+    assert main(["bench", "registration", "--trials", "2", "--no-render", "--out", str(tmp_path / "r")]) == 0
+    err = capsys.readouterr().err
+    assert re.search(r"bench registration: .* [1-5]/5 \[\d\d:\d\d<", err), err
+    assert (tmp_path / "r" / "registration.json").is_file()
+
+
 @pytest.mark.render
 def test_a_terminated_demo_leaves_nothing_behind(tmp_path, sig="SIGTERM"):
     import signal

@@ -442,12 +442,24 @@ def _chart_poses(obs, path):
 
 # ---------------------------------------------------------------------------------------- run
 def run(args: argparse.Namespace) -> dict:
+    from vishap._core.results import progress
+
     out = Path(args.out)
     rng = np.random.default_rng(args.seed)
-    noise = _noise_sweep(rng, args.trials, args.points)
-    outliers = _outlier_sweep(rng, args.trials, max(args.points, 40))
-    points = _points_sweep(rng, args.trials)
-    speed = _speed(rng)
+    # one bar over the benchmark's parts (each a sweep of its own; the camera-robot part renders)
+    bar = progress(total=5 + (not args.no_render), desc="bench registration", unit="part",
+                   quiet=getattr(args, "quiet", False))
+
+    def part(name, fn, *a):
+        bar.set_postfix_str(name)
+        r = fn(*a)
+        bar.update(1)
+        return r
+
+    noise = part("noise", _noise_sweep, rng, args.trials, args.points)
+    outliers = part("outliers", _outlier_sweep, rng, args.trials, max(args.points, 40))
+    points = part("points", _points_sweep, rng, args.trials)
+    speed = part("speed", _speed, rng)
     _chart_noise(noise, out / "registration_noise.png")
     _chart_points(points, out / "registration_points.png")
     _chart_tradeoff(outliers, out / "registration_tradeoff.png")
@@ -458,8 +470,10 @@ def run(args: argparse.Namespace) -> dict:
     rec["goal_noise_floor_at_0p5mm"] = {name: v[i] for name, v in noise["ratio_to_floor"].items()}
     rec["goal_correct_at_30pct_outliers"] = {name: v["correct_fraction"][outliers["outlier_fraction"].index(0.3)]
                                              for name, v in outliers["methods"].items()}
-    rec["stereo_calibration"] = _stereo(Path(args.stereo_dir))
+    rec["stereo_calibration"] = part("stereo calibration", _stereo, Path(args.stereo_dir))
     if not args.no_render:
-        rec["camera_robot"] = _camera_robot([int(s) for s in args.poses.split(",")], args.pose_seeds, out)
+        rec["camera_robot"] = part("camera-robot", _camera_robot, [int(s) for s in args.poses.split(",")],
+                                   args.pose_seeds, out)
+    bar.close()
     rec["charts"] = sorted(str(p) for p in out.glob("registration_*.png"))
     return rec
