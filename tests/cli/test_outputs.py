@@ -342,6 +342,21 @@ def test_bench_registration_shows_progress_over_its_parts(tmp_path, capsys, monk
 
 
 @pytest.mark.render
+def test_bench_synth_shows_progress_over_its_parts(tmp_path, capsys, monkeypatch):
+    from tqdm import tqdm
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    init = tqdm.__init__  # redraw on every part, however quick
+    monkeypatch.setattr(tqdm, "__init__", lambda self, *a, **kw: init(self, *a, **{**kw, "mininterval": 0}))
+    assert main(["bench", "synth", "--pairs", "2", "--resolution", "160x120", "--vis-resolution", "160x120",
+                 "--vis-stride", "40", "--scenes", "wall,button", "--out", str(tmp_path / "s")]) == 0
+    err = capsys.readouterr().err
+    assert re.search(r"bench synth: .* [1-3]/3 \[\d\d:\d\d<", err), err
+    rec = json.loads((tmp_path / "s" / "synth.json").read_text())
+    assert list(rec["visibility"]) == ["wall", "button"]
+
+
+@pytest.mark.render
 def test_a_terminated_demo_leaves_nothing_behind(tmp_path, sig="SIGTERM"):
     import signal
     import time

@@ -189,10 +189,21 @@ def _charts(speed: dict, vis: dict, out_dir) -> list[str]:
 def run(args) -> dict:
     from pathlib import Path
 
+    from vishap._core.results import progress
+
     res = _res(args.resolution)
+    scenes = [s.strip() for s in str(args.scenes).split(",") if s.strip()]
+    # one bar over the parts: the timed renders, then each scene's visibility sweep
+    bar = progress(total=1 + len(scenes), desc="bench synth", unit="part", quiet=getattr(args, "quiet", False))
+    bar.set_postfix_str("speed")
     speed = _speed(res, max(2, int(args.pairs)), int(args.seed))
-    vis = _visibility([s.strip() for s in str(args.scenes).split(",") if s.strip()], _res(args.vis_resolution),
-                      int(args.vis_stride), int(args.seed))
+    bar.update(1)
+    vis = {}
+    for scene in scenes:
+        bar.set_postfix_str(f"visibility: {scene}")
+        vis.update(_visibility([scene], _res(args.vis_resolution), int(args.vis_stride), int(args.seed)))
+        bar.update(1)
+    bar.close()
     out_dir = Path(args.out or "out/bench/synth")
     charts = _charts(speed, vis, out_dir)
     return {"bench": "synth", "machine": machine_info(), "speed": speed, "visibility": vis, "charts": charts}
