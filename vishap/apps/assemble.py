@@ -157,7 +157,7 @@ def vision_result(est) -> dict:
         "uv_left": np.full(2, np.nan) if est.uv_left is None else np.asarray(est.uv_left, float).reshape(2),
         "uv_right": np.full(2, np.nan) if est.uv_right is None else np.asarray(est.uv_right, float).reshape(2),
         "confidence": float(est.confidence),
-        "lost": bool(not found and getattr(est, "lost", False)),
+        "lost": bool(not found and est.lost),
         "vision_ms": float(est.timings.get("total_ms", np.nan)),
     }
 
