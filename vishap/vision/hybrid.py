@@ -46,11 +46,12 @@ import numpy as np
 
 from vishap._core.errors import ConfigError
 from vishap.vision.detector import MonoDetection, register_detector
-from vishap.vision.fingertip import FingertipConfig, detect_fingertips
+from vishap.vision.fingertip import detect_fingertips
 from vishap.vision.learned import (
     INDEX_DIP, INDEX_MCP, INDEX_PIP, INDEX_TIP, INSTALL_HINT, HandLandmarks, LearnedConfig, LearnedDetector,
     cap_from_landmarks,
 )
+from vishap.vision.segment import binary_median
 from vishap.vision.skin_model import SkinModel
 from vishap.vision.track import TipTracker, TrackerConfig
 
@@ -206,7 +207,7 @@ class HybridDetector:
     # ------------------------------------------------------------------ the two halves
     def _skin_mask(self, win: np.ndarray) -> np.ndarray:
         m = self._local.mask(win) if self._skin_model is None else self._skin_model.mask(win)
-        return cv2.medianBlur(m, 5)
+        return binary_median(m, 5)
 
     def _fit(self, image: np.ndarray, centre: np.ndarray, radius: float, direction: np.ndarray,
              extra_px: float = 0.0) -> _Fit | None:
@@ -221,7 +222,7 @@ class HybridDetector:
             return None
         mask = self._skin_mask(image[y0:y1, x0:x1])
         origin = np.array([x0, y0], np.float64)
-        tips = detect_fingertips(mask, max(1.5, c.fit_radius_frac * radius), FingertipConfig(),
+        tips = detect_fingertips(mask, max(1.5, c.fit_radius_frac * radius),
                                  prior_uv=centre - origin, max_tips=3)
         best = None
         for tip in tips:

@@ -144,13 +144,11 @@ class VisionPipeline:
         fingertip cap at its extreme point. The model is kept as learned (the caller
         decides: move the hand out of view and learn again); the warning is reported with every
         frame that finds no fingertip, since that is what such a background causes."""
-        import cv2
-
         from vishap.vision.segment import binary_median
         from vishap.vision.view import hand_region, hand_tip
 
         seg = self.segmenters["left"]
-        mask = binary_median(self.skin.mask_hsv(cv2.cvtColor(seg.mean_image, cv2.COLOR_BGR2HSV)), 5)
+        mask = binary_median(self.skin.mask(seg.mean_image), seg.config.median)
         region = hand_region(mask)
         if region is None:
             return ""

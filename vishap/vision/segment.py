@@ -228,7 +228,7 @@ class Segmenter:
         x0, y0, x1, y1 = roi
         k = c.coarse
         small = image[y0:y1:k, x0:x1:k]
-        sk = self.skin.mask_hsv(cv2.cvtColor(small, cv2.COLOR_BGR2HSV))
+        sk = self.skin.mask(small)
         out = np.zeros((y1 - y0, x1 - x0), np.uint8)
         # a lone skin sample (sensor noise on a skin-like background) starts no box: a region that
         # can hold a fingertip (a disk over 2·coarse pixels wide) has neighbouring samples
