@@ -175,13 +175,14 @@ class ServoLoop:
         return self.shaper.policy
 
     def tick(self, t: float, X_d=None, extra_force_robot=None, *, t_sample: float | None = None,
-             finger_m: float | None = None, gap_m: float | None = None, normal=None) -> None:
+             finger_m: float | None = None, gap_m: float | None = None, normal=None, joints=None) -> None:
         """One servo cycle at time ``t`` (s) toward ``X_d`` (m, robot frame) plus an extra force (N).
 
         ``finger_m``: the device's distance to the estimated fingertip (m, if known), for the travel
         limiter's speed cap near the finger; ``gap_m``/``normal`` its height over the device's face
-        along the subject's normal, for the cap on the speed towards it."""
-        q1, q2, q3, w1, w2, w3 = self._read()
+        along the subject's normal, for the cap on the speed towards it. ``joints``: the six joint
+        readings this tick already took (the core's step reads once), else read here."""
+        q1, q2, q3, w1, w2, w3 = self._read() if joints is None else joints
         if X_d is not None:
             self._offer(t, X_d, t_sample)
         tg = self._at(t)

@@ -26,7 +26,7 @@ subject's normal).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -288,7 +288,6 @@ class ServoTick:
     finger_m: float = math.nan  # the device's distance to the tracked finger (m; NaN: unknown)
     pressed: bool = False    # the device felt the finger pushing it in (the guard's input)
     touch_in_s: float = math.inf  # the predicted time until the tracked finger lands on the device's face
-    extra: dict = field(default_factory=dict)
 
 
 class ServoStep:
@@ -320,6 +319,7 @@ class ServoStep:
         self._l1, self._l2 = self.device.params.l1, self.device.params.l2
         self._tip = tip_state_scalar
         self._time = lambda: float(self.device.time)
+        self._last = (None, None, None)  # the newest read(): its state, joint readings and tip state
 
     def reset(self) -> None:
         """Start a new run on the same device: guard, laws, object gain and target keys forgotten."""
@@ -335,10 +335,12 @@ class ServoStep:
         From the device's scalar fast path and the arm's kinematics (as :class:`ServoLoop` reads it),
         not :meth:`Device.read`, which costs about as much as the rest of the tick.
         """
-        q1, q2, q3, w1, w2, w3 = self._read_scalar()
-        px, py, pz, vx, vy, vz = self._tip(q1, q2, q3, w1, w2, w3, self._l1, self._l2)
+        joints = q1, q2, q3, w1, w2, w3 = self._read_scalar()
+        tip = px, py, pz, vx, vy, vz = self._tip(q1, q2, q3, w1, w2, w3, self._l1, self._l2)
         p = np.array((px, py, pz))
         dev = DeviceState(self._time(), np.array((q1, q2, q3)), np.array((w1, w2, w3)), p, np.array((vx, vy, vz)))
+        # the tick acts on this one reading: a driver's state may change between two reads
+        self._last = (dev, joints, tip)
         return dev, p + self.mount
 
     def tick(self, t: float, rec: TargetRecord, dev=None) -> ServoTick:
@@ -346,6 +348,9 @@ class ServoStep:
             dev, p_dev = self.read()
         else:
             p_dev = np.asarray(dev.p_robot, float) + self.mount
+        last, joints, tip = self._last
+        if dev is not last:  # a state the caller made itself: read from it, not from the device
+            joints, tip = None, (*dev.p_robot, *dev.v_robot)
         fault = None
         law = self.contact.law
         pressed = self._rendering and law is not None and law.depth(p_dev) > self.press_m
@@ -363,7 +368,7 @@ class ServoStep:
         ctrl = self.controller
         ctrl.set_lambda_robot(L)
         if self.servo.travel is not None:  # travel resumes from the arm where Λ let go
-            self.servo.travel.anchor(*dev.p_robot, *dev.v_robot, L)
+            self.servo.travel.anchor(*tip, L)
         ctrl.force_scale = scale
         # the shaper takes a new sample when its key changes: a new record's capture time while
         # tracking, the moment a retreat began while retreating, the previous key while holding
@@ -378,6 +383,6 @@ class ServoStep:
         self._key, self.last_action = key, action
         extra = F_law if F_law is not None else self.contact.F_hold
         self.servo.tick(t, None if key is None else X_ee, extra, t_sample=key, finger_m=finger_m, gap_m=gap,
-                        normal=normal)
+                        normal=normal, joints=joints)
         return ServoTick(action, X_ee, F_law, dev, p_dev, fault, self.contact.state_code, scale, finger_m, pressed,
                          touch_in)
