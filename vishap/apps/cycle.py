@@ -23,6 +23,7 @@ import time
 import numpy as np
 
 from vishap.runtime.core import GUARD_CODES, ServoStep, TargetRecord
+from vishap.tactile.contact import ContactSample
 
 __all__ = ["ServoCycle", "Finger", "ScriptedFinger", "TrackedFinger", "RecordedFinger", "pad_force", "tactile_row"]
 
@@ -123,8 +124,6 @@ def tactile_state(out) -> int:
 
 def contact_sample(obj, t, p_device, v_device, rec: TargetRecord, F_on_finger, finger_dir_robot):
     """The sleeve's contact sample in the object frame, from what the system knows (module docstring)."""
-    from vishap.tactile.contact import ContactSample
-
     n = np.asarray(obj.normal, float)
     fn = float(np.asarray(F_on_finger, float) @ n)
     touching = fn > 0.0
