@@ -182,6 +182,9 @@ class _SampleWindow:
 
     window_s: float
     samples: list
+    meas_std: float
+    #: a sample further than this many σ from the median of its neighbours is a false detection
+    outlier_sigmas = 5.0
 
     def observe(self, t: float, p_robot) -> None:
         if p_robot is None:
@@ -189,6 +192,26 @@ class _SampleWindow:
         self.samples.append((float(t), np.asarray(p_robot, dtype=float).copy()))
         while self.samples and self.samples[0][0] < t - self.window_s:
             self.samples.pop(0)
+
+    def consistent(self) -> list:
+        """The samples without those that stand out of their neighbours: further than
+        ``outlier_sigmas`` σ from the per-axis median of the (up to) five centred on them — the first
+        sample from the median of the first three, with the step between the next two allowed too. A finger's path is smooth, so on a
+        monotone stretch that median is the sample itself; a false detection (the back of the hand,
+        a knuckle) lies centimetres off it. The newest sample is always kept."""
+        n = len(self.samples)
+        if n < 3:
+            return list(self.samples)
+        P = np.array([p for _, p in self.samples])
+        tol = self.outlier_sigmas * self.meas_std
+        keep = np.ones(n, bool)
+        for i in range(n - 1):
+            k = min(2, i, n - 1 - i)  # neighbours on each side: the median of a monotone run is the sample
+            lo, hi, allow = i - k, i + k + 1, 0.0
+            if i == 0:
+                lo, hi, allow = 0, 3, float(np.linalg.norm(P[2] - P[1]))
+            keep[i] = np.linalg.norm(P[i] - np.median(P[lo:hi], axis=0)) <= tol + allow
+        return [s for s, k in zip(self.samples, keep) if k]
 
 
 class PathExtrapolator(_SampleWindow):
@@ -206,7 +229,8 @@ class PathExtrapolator(_SampleWindow):
                  model_error: float = 0.1):
         self.window_s = float(window_s)
         self.model_error = float(model_error)
-        self.var_meas = float(meas_std_m) ** 2
+        self.meas_std = float(meas_std_m)
+        self.var_meas = self.meas_std ** 2
         self.min_span = float(min_span_m)
         self.reset()
 
@@ -214,9 +238,10 @@ class PathExtrapolator(_SampleWindow):
         self.samples: list[tuple[float, np.ndarray]] = []
 
     def contact(self, centre, R_robot_obj) -> tuple[np.ndarray, float] | None:
-        if len(self.samples) < 4:
+        samples = self.consistent()
+        if len(samples) < 4:
             return None
-        q = (np.array([p for _, p in self.samples]) - centre) @ R_robot_obj
+        q = (np.array([p for _, p in samples]) - centre) @ R_robot_obj
         h = q[:, 2]
         if h[-1] <= 0 or h[0] - h[-1] < self.min_span or np.any(np.diff(h) > 0.002):
             return None  # not descending steadily towards the surface
@@ -291,7 +316,8 @@ class ReachFit(_SampleWindow):
                  end_std_m: float = 0.003, bow_std_m: float = 0.01, reach_std_m: float = 0.05, durations_s=None,
                  t0_step_s: float = 0.01, max_samples: int = 40):
         self.window_s = float(window_s)
-        self.w = 1.0 / float(meas_std_m) ** 2
+        self.meas_std = float(meas_std_m)
+        self.w = 1.0 / self.meas_std ** 2
         self.end_depth, self.w_end = float(end_depth_m), 1.0 / float(end_std_m) ** 2
         self.w_bow = 1.0 / float(bow_std_m) ** 2
         self.w_reach = 1.0 / float(reach_std_m) ** 2
@@ -330,17 +356,34 @@ class ReachFit(_SampleWindow):
         return R[:, 0] * uv[0] + R[:, 1] * uv[1]
 
     def contact(self, centre, R_robot_obj) -> tuple[np.ndarray, float] | None:
-        """(touch point on the surface plane (robot frame), variance m²) or None; sets ``t_touch``."""
+        """(touch point on the surface plane (robot frame), variance m²) or None; sets ``t_touch``.
+
+        Samples that stand out of their neighbours (:meth:`consistent`: a false detection, vision's
+        first frame of a hand or a knuckle) are left out, so that one of them cannot turn the reach into
+        another."""
         self.t_touch = None
         self._fit = None
-        if len(self.samples) < 4:
+        samples = self.consistent()
+        if len(samples) < 4:
             return None
-        samples = self.samples
         if len(samples) > self.max_samples:  # a fast camera: evenly spaced samples, the latest kept
             idx = np.round(np.linspace(0, len(samples) - 1, self.max_samples)).astype(int)
             samples = [samples[i] for i in idx]
         ts = np.array([t for t, _ in samples])
-        q = (np.array([p for _, p in samples]) - centre) @ R_robot_obj
+        q = (np.array([p for _, p in samples]) - np.asarray(centre, float)) @ R_robot_obj
+        T0, TT, coef, pw, mt, var = self._fit_grid(ts, q)
+        tau = np.interp(mt, _M_TABLE, _TAU_TABLE)
+        self.t_touch = float(pw @ (T0 + tau * TT))
+        sel = pw > 1e-4 * pw.max()  # the candidates that carry the average
+        self._fit = (T0[sel], TT[sel], coef[sel], pw[sel] / pw[sel].sum(), np.asarray(R_robot_obj, float))
+        uv = coef[:, 0, :] + coef[:, 1, :] * mt[:, None] + coef[:, 2, :] * (4.0 * mt * (1.0 - mt))[:, None]
+        mean = pw @ uv
+        return centre + R_robot_obj[:, 0] * mean[0] + R_robot_obj[:, 1] * mean[1], var
+
+    def _fit_grid(self, ts, q):
+        """The weighted grid of reaches fitted to samples at ``ts`` (N,) with surface-frame coordinates
+        ``q`` (N, 3): start times, durations, tangential coefficients, weights, touch phases, the touch
+        point's variance."""
         t_last = ts[-1]
         t0 = np.arange(t_last - self.window_s - 0.5, t_last + 1e-9, self.t0_step)
         T0, TT = np.meshgrid(t0, self.T, indexing="ij")
@@ -382,11 +425,8 @@ class ReachFit(_SampleWindow):
         pw /= pw.sum()
         mean = pw @ uv
         var = float(pw @ ((uv - mean) ** 2).sum(1)) / 2.0
-        Ainv = np.linalg.inv(A[int(np.argmax(pw))])
-        xt = np.array([1.0, mt[int(np.argmax(pw))], 4.0 * mt[int(np.argmax(pw))] * (1.0 - mt[int(np.argmax(pw))])])
+        b = int(np.argmax(pw))
+        Ainv = np.linalg.inv(A[b])
+        xt = np.array([1.0, mt[b], 4.0 * mt[b] * (1.0 - mt[b])])
         var += float(xt @ Ainv @ xt)
-        tau = np.interp(mt, _M_TABLE, _TAU_TABLE)
-        self.t_touch = float(pw @ (T0 + tau * TT))
-        keep = pw > 1e-4 * pw.max()  # the candidates that carry the average
-        self._fit = (T0[keep], TT[keep], coef[keep], pw[keep] / pw[keep].sum(), np.asarray(R_robot_obj, float))
-        return centre + R_robot_obj[:, 0] * mean[0] + R_robot_obj[:, 1] * mean[1], var
+        return T0, TT, coef, pw, mt, var

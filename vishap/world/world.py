@@ -34,6 +34,8 @@ __all__ = ["Interaction", "World", "HANDOVERS"]
 HANDOVERS = ("hold", "blend", "track")
 CONTACT_MODELS = ("ray", "path", "both", "reach", "all")
 _UP = np.array([0.0, 0.0, 1.0])
+#: the slowest closing speed the time left to a touch is computed with (m/s; the ray's own floor)
+_MIN_CLOSING_M_S = 0.02
 
 
 @dataclass
@@ -115,12 +117,15 @@ class World:
             raise ValueError(f"contact_model must be one of {CONTACT_MODELS}, got {contact_model!r}")
         self.contact_model = contact_model
         self.engage_m = float(engage_m)
-        self.path = PathExtrapolator()
-        self.reach = ReachFit()
         if handover not in HANDOVERS:
             raise ValueError(f"handover must be one of {HANDOVERS}, got {handover!r}")
         self.scene = scene
         self.predictor = make_predictor(predictor) if isinstance(predictor, str) else predictor
+        # one figure for the fingertip's noise: the path and reach fits weigh the samples by the σ the
+        # predictor assumes (the stereo model's in the demos, 3–4 mm), not by a smaller one of their own
+        sigma = _meas_std(self.predictor)
+        self.path = PathExtrapolator() if sigma is None else PathExtrapolator(meas_std_m=sigma)
+        self.reach = ReachFit() if sigma is None else ReachFit(meas_std_m=sigma)
         self.handover = handover
         self.latency_s = float(latency_s)
         self.imminent_m, self.hysteresis_m, self.hold_m = float(imminent_m), float(hysteresis_m), float(hold_m)
@@ -186,31 +191,43 @@ class World:
         c = subj.project(c)
         fit = self.path.contact(subj.centre, subj.R) if self.contact_model in ("path", "both", "all") and tau is not None else None
         use_ray = self.contact_model != "path" or fit is None
-        reach = None
-        if self.contact_model in ("reach", "all") and self.p_meas is not None and subj.height(self.p_meas) > 0.0:
-            reach = self.reach.contact(subj.centre, subj.R)
-        if reach is not None and self.contact_model == "reach":
-            c = subj.project(reach[0])
-        elif tau is None:
-            self.meeting.reset()
-        else:
-            if use_ray and hasattr(self.predictor, "cov_at"):  # fuse successive predictions by their uncertainty
-                P = self.predictor.cov_at(t + self.latency_s)
-                c = self.meeting.update(c, tau, np.trace(P[:3, :3]) / 3, np.trace(P[3:, 3:]) / 3)
-            if fit is not None:  # the path's own extrapolation, fused by its variance
-                c = self.meeting.update(fit[0], 0.0, fit[1], 0.0)
-            if reach is not None:
-                c = self.meeting.update(reach[0], 0.0, reach[1], 0.0)
-            c = subj.project(c)
-        confirmed = in_contact and self._touch_confirmed(subj, p_robot_device)
         # near the finger: under the lock height (or time), and above the surface or, when the extrapolated
         # finger is already under it, over the object itself (a finger passing beside it is not landing)
         near = h < self.lock_m and (
             h > -self.contact_margin_m or subj.inside_extent(p, self.path_margin_m))
-        t_left = tau if self.reach.t_touch is None or not near else self.reach.t_touch - t - self.latency_s
-        frozen = near and (h < self.hold_m or (t_left is not None and t_left < self.freeze_s))
+        runup = self.runup_s > 0.0 and self.replan_m > 0.0 and subj.mode.target != "centre"
+        reach = None
+        if (self.contact_model in ("reach", "all") or (runup and near)) and self.p_meas is not None \
+                and subj.height(self.p_meas) > 0.0:
+            reach = self.reach.contact(subj.centre, subj.R)
+        if reach is not None and self.contact_model == "reach":
+            c = subj.project(reach[0])
+        elif tau is None and not near:
+            self.meeting.reset()  # not approaching: no meeting point yet
+        # (a finger slowing to a stop near the surface lands under itself: its projections keep being
+        # fused, so one noisy sample does not become the landing point)
+        else:
+            if use_ray and hasattr(self.predictor, "cov_at"):  # fuse successive predictions by their uncertainty
+                P = self.predictor.cov_at(t + self.latency_s)
+                c = self.meeting.update(c, tau or 0.0, np.trace(P[:3, :3]) / 3, np.trace(P[3:, 3:]) / 3)
+            if fit is not None:  # the path's own extrapolation, fused by its variance
+                c = self.meeting.update(fit[0], 0.0, fit[1], 0.0)
+            if reach is not None and self.contact_model == "all":
+                c = self.meeting.update(reach[0], 0.0, reach[1], 0.0)
+            c = subj.project(c)
+        confirmed = in_contact and self._touch_confirmed(subj, p_robot_device)
+        # frozen by the time left to the touch, not by height (a 3–4 mm noisy sample can put the extrapolated
+        # finger within hold_m while it is 8 mm and 300 ms away): the later of the fitted reach's touch and
+        # the straight line's at the present closing speed (at least ``_MIN_CLOSING_M_S``). Both come early
+        # on a decelerating finger — the line by its speed, the fit by its end-depth prior, which for a
+        # finger slowing to a stop at the surface puts the crossing a third of the reach too early
+        closing = max(-float(subj.normal @ v), _MIN_CLOSING_M_S)
+        t_left = max(h, 0.0) / closing
+        if reach is not None and self.reach.t_touch is not None:
+            t_left = max(t_left, self.reach.t_touch - t - self.latency_s)
+        frozen = near and t_left < self.freeze_s
         X = self._target(subj, p, c, h, confirmed, near, frozen)
-        if not confirmed and self.runup_s > 0.0 and self.replan_m > 0.0 and subj.mode.target != "centre" and near:
+        if not confirmed and runup and near:
             X = X + self._runup(t, subj, reach)
         via = False
         start = p_robot_device if p_robot_device is not None else self.X_d
@@ -358,6 +375,13 @@ class World:
             for o in self.scene.objects
             if not o.segment_hits(a, a, margin=0.0, top_clearance=-0.0005)
         )
+
+
+def _meas_std(predictor) -> float | None:
+    """The per-axis σ (m) of one fingertip sample that ``predictor`` assumes (its measurement noise
+    ``R``), or None when it has none."""
+    R = getattr(predictor, "R", None)
+    return None if R is None else float(np.sqrt(np.trace(np.asarray(R, float)) / 3.0))
 
 
 def _tangential(d, normal) -> float:
