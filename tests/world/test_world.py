@@ -261,8 +261,10 @@ def _near_world(**kw):
 
 def test_near_the_finger_the_landing_point_moves_only_when_the_landing_would_leave_the_face():
     """Within ``lock_m`` of the surface the waiting point ignores moves under the 1 mm dead-band; once
-    frozen (``hold_m``) it moves only when the landing would leave half the finger's room on the 40 mm
-    plate (10 mm from its centre keeps the finger 10 mm inside the edge): not for 3 mm, for 7 mm."""
+    frozen (``freeze_s`` before the touch: a finger without a velocity estimate is taken to close at
+    20 mm/s, so 1.5 mm over the surface is 75 ms from it) it moves only when the landing would leave
+    half the finger's room on the 40 mm plate (10 mm from its centre keeps the finger 10 mm inside the
+    edge): not for 3 mm, for 7 mm. 3 mm over the surface (150 ms) it is not frozen yet."""
     w = _near_world()
     assert w.replan_m == pytest.approx(0.005) and w.deadband_m == pytest.approx(0.001)
     a = w.update(0.1, [0.20, 0.0, -0.150 + 0.008]).X_d
@@ -270,13 +272,19 @@ def test_near_the_finger_the_landing_point_moves_only_when_the_landing_would_lea
     assert np.allclose(a, [0.20, 0.0, -0.15]) and np.allclose(b, a)
     c = w.update(0.3, [0.203, 0.0, -0.150 + 0.006]).X_d
     assert np.allclose(c, [0.203, 0.0, -0.15])
-    d = w.update(0.4, [0.206, 0.0, -0.150 + 0.003]).X_d  # frozen: 3 mm is within the room
-    assert np.allclose(d, c)
-    e = w.update(0.5, [0.210, 0.0, -0.150 + 0.002]).X_d  # 7 mm: the finger would land too near the edge
+    c2 = w.update(0.35, [0.2045, 0.0, -0.150 + 0.003]).X_d  # 3 mm over it, 150 ms away: not frozen by height
+    assert np.allclose(c2, [0.2045, 0.0, -0.15])
+    d = w.update(0.4, [0.206, 0.0, -0.150 + 0.0015]).X_d  # frozen: 1.5 mm is within the room
+    assert np.allclose(d, c2)
+    e = w.update(0.5, [0.210, 0.0, -0.150 + 0.001]).X_d  # 7 mm: the finger would land too near the edge
     assert np.allclose(e, [0.210, 0.0, -0.15])
-    # a face too narrow to land off its centre (18 mm, the keys' and the panel's) has no room: no run-up
-    w3 = World(load_scene("panel"), predictor="none", runup_s=0.0)
-    assert w3.replan_m == 0.0
+    # a face too narrow to land off its centre (an 18 mm keycap) has no room: no re-plan, no run-up
+    narrow = load_scene("panel")
+    narrow.passive_object = narrow.passive_object.model_copy(update={"size_m": (0.018, 0.018, 0.003)})
+    assert World(narrow, predictor="none", runup_s=0.0).replan_m == 0.0
+    # every scene's passive face leaves the finger room to land 10 mm inside its edge (issue 16)
+    for name in ("wall", "button", "fabric", "panel"):
+        assert load_scene(name).passive_object.half_size_m >= 0.010 + 0.0025, name
 
 
 def test_the_run_up_moves_the_target_with_the_finger_sideways_near_the_touch():
@@ -306,3 +314,36 @@ def test_the_run_up_moves_the_target_with_the_finger_sideways_near_the_touch():
     v_true = (_bowed_reach(tt + 1e-4) - _bowed_reach(tt - 1e-4)) / 2e-4
     v_true[2] = 0.0
     assert seen >= 2 and np.linalg.norm(v - v_true) < 0.03 and np.linalg.norm(v) > 0.04
+
+
+def test_reach_fit_leaves_out_a_false_detection_and_weighs_samples_by_the_worlds_noise():
+    """One false detection (the back of the hand, 40 mm above the finger, as vision's first frame of
+    a hand gives) must not turn the fitted reach into another: the touch time and point stay those of
+    the clean samples; kept, it moves the touch time by hundreds of ms. The world's path and reach
+    fits assume the predictor's fingertip noise (one figure), not one of their own."""
+    from vishap.world.predictor import KalmanPredictor, ReachFit
+
+    rng = np.random.default_rng(7)
+    ts = np.arange(0.0, 0.1 + 0.6 * 0.30, 1 / 30)
+    ps = [_bowed_reach(t) + rng.normal(0.0, 0.003, 3) for t in ts]
+    bad = [p.copy() for p in ps]
+    bad[0] = bad[0] + np.array([0.0, 0.0, 0.040])
+    centre = np.array([0.2, 0.0, -0.15])
+    fits = []
+    for seq in (ps, bad):
+        rf = ReachFit(meas_std_m=0.003)
+        for t, p in zip(ts, seq):
+            rf.observe(t, p)
+        assert len(rf.consistent()) == len(seq) - (seq is bad)
+        fits.append((rf.contact(centre, np.eye(3))[0], rf.t_touch))
+    (c_clean, t_clean), (c_bad, t_bad) = fits
+    assert np.linalg.norm(c_bad - c_clean) < 0.001 and abs(t_bad - t_clean) < 0.01
+    # the same samples with the false detection fitted as if it were a true one
+    rf = ReachFit(meas_std_m=0.003)
+    rf.outlier_sigmas = np.inf
+    for t, p in zip(ts, bad):
+        rf.observe(t, p)
+    rf.contact(centre, np.eye(3))
+    assert abs(rf.t_touch - t_clean) > 5 * abs(t_bad - t_clean) + 0.02
+    w = World(load_scene("wall"), predictor=KalmanPredictor(meas_std_m=0.0036))
+    assert w.reach.meas_std == pytest.approx(0.0036) and w.path.meas_std == pytest.approx(0.0036)

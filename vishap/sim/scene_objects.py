@@ -83,14 +83,20 @@ def _frame(cx, cy, z_top, outer_x, outer_y, band, thick) -> trimesh.Trimesh:
 # width of the drawn frame around each object's open middle, and the button bezel's margin, m
 _BAND_M = {"wall": 0.008, "fabric": 0.016, "button": 0.013}
 _BEZEL_MARGIN_M = 0.030
+_CAP_CLEARANCE_M = 0.002  # gap between the passive keycap and the bezel's opening on each side
+
+
+def _bezel_size(spec: SceneSpec) -> tuple[float, float]:
+    """Outer size (x, y) of a key's bezel: the key plus the margin, and wide enough that the passive
+    keycap (the scene file's ``passive_object``, wider than the virtual key) moves freely in its opening."""
+    cap = [s + 2.0 * (_BAND_M["button"] + _CAP_CLEARANCE_M) for s in spec.passive_size_m[:2]]
+    return tuple(max(e + _BEZEL_MARGIN_M, c) for e, c in zip(spec.extent_m, cap))
 
 
 def opening_half_extent(spec: SceneSpec) -> tuple[float, float]:
     """Half size (x, y) of the open middle of the drawn object, in which the passive object meets the finger."""
-    ex, ey = spec.extent_m
+    ex, ey = _bezel_size(spec) if spec.kind == "button" else spec.extent_m
     band = _BAND_M.get(spec.kind, _BAND_M["wall"])
-    if spec.kind == "button":
-        ex, ey = ex + _BEZEL_MARGIN_M, ey + _BEZEL_MARGIN_M
     return ex / 2.0 - band, ey / 2.0 - band
 
 
@@ -101,7 +107,7 @@ def object_meshes(spec: SceneSpec) -> list[tuple[str, trimesh.Trimesh, tuple[flo
     ex, ey = spec.extent_m
     out = []
     if spec.kind == "button":
-        out.append(("bezel", _frame(cx, cy, z - 0.002, ex + _BEZEL_MARGIN_M, ey + _BEZEL_MARGIN_M, _BAND_M["button"], 0.006), (0.30, 0.34, 0.42)))
+        out.append(("bezel", _frame(cx, cy, z - 0.002, *_bezel_size(spec), _BAND_M["button"], 0.006), (0.30, 0.34, 0.42)))
     elif spec.kind == "fabric":
         out.append(("fabric", _frame(cx, cy, z, ex, ey, _BAND_M["fabric"], 0.002), (0.18, 0.26, 0.52)))
     else:
