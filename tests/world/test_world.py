@@ -347,3 +347,24 @@ def test_reach_fit_leaves_out_a_false_detection_and_weighs_samples_by_the_worlds
     assert abs(rf.t_touch - t_clean) > 5 * abs(t_bad - t_clean) + 0.02
     w = World(load_scene("wall"), predictor=KalmanPredictor(meas_std_m=0.0036))
     assert w.reach.meas_std == pytest.approx(0.0036) and w.path.meas_std == pytest.approx(0.0036)
+
+
+def test_a_key_runs_up_with_the_finger_within_the_keycaps_room():
+    """A key's target is its centre (VisHap §2.3), but the keycap runs up sideways with a finger that
+    comes in obliquely (as a plate does), never further than half the cap's room from the centre, and
+    is back on the centre once the touch is seen."""
+    scene = load_scene("button")
+    key = scene.objects[0]
+    w = World(scene, latency_s=0.033, contact_model="both")
+    assert w.replan_m == pytest.approx(0.5 * (0.015 - 0.010))
+    shift = np.array([0.015, 0.010, 0.0])  # the bowed reach, ending on the key's centre
+    offsets = []
+    for k in range(16):
+        t = k / 30
+        off = w.update(t, _bowed_reach(t) - shift).X_d - key.centre
+        offsets.append(float(np.linalg.norm(off)))
+        assert abs(off[2]) < 1e-12
+    assert max(offsets) > 0.5e-3 and max(offsets) <= w.replan_m + 1e-9
+    assert offsets[0] == 0.0  # far from the key: its centre
+    it = w.update(16 / 30, key.centre + np.array([0.001, 0.0, -0.001]))  # the touch, seen
+    assert np.allclose(it.X_d, key.centre)

@@ -195,7 +195,7 @@ class World:
         # finger is already under it, over the object itself (a finger passing beside it is not landing)
         near = h < self.lock_m and (
             h > -self.contact_margin_m or subj.inside_extent(p, self.path_margin_m))
-        runup = self.runup_s > 0.0 and self.replan_m > 0.0 and subj.mode.target != "centre"
+        runup = self.runup_s > 0.0 and self.replan_m > 0.0
         reach = None
         if (self.contact_model in ("reach", "all") or (runup and near)) and self.p_meas is not None \
                 and subj.height(self.p_meas) > 0.0:
@@ -285,7 +285,9 @@ class World:
         frozen with the meeting point. The offset is for the time the servo reaches this sample: its
         age (``latency_s``) plus one sample interval (the servo interpolates towards the newest sample
         over one interval). Zero without a fit; never longer than the re-plan room (none on a face with
-        no room to land off its centre)."""
+        no room to land off its centre). A key runs up too, ending on its centre: a finger coming in
+        obliquely lands on a keycap that moves with it (issue 16's readiness) and stays ≥ 10 mm inside
+        its edge."""
         if self._run is None or self.held is None:
             if reach is None and self.p_meas is not None and subj.height(self.p_meas) > 0.0:
                 reach = self.reach.contact(subj.centre, subj.R)
