@@ -127,3 +127,20 @@ def test_an_oblique_approach_is_ready_with_the_run_up_and_not_without_it():
                          stop_after_contact_s=0.02)
     assert r.ready and all(r.ready_checks.values()) and r.in_place
     assert not still.ready and not still.ready_checks["still_tangential"] and still.ready_checks["inside"]
+
+
+def test_a_missed_detection_is_a_coasting_track_not_a_lost_finger():
+    """The camera model's drop-outs are missed detections of a finger still in view: vision's tracker
+    coasts, its confidence decaying with the misses in a row (0.6 per miss), so the guard keeps
+    tracking through one or two misses instead of holding the device at once (it used to hold for a
+    frame on every drop-out, stopping the run-up under a landing finger)."""
+    from vishap.world.closed_loop import make_device
+
+    scene = load_scene("wall")
+    step = make_device(scene)
+    tr = _traj(scene, "wall", [0.01, 0.0, 0.04], 0.2)
+    cam = VisionModel(noise_m=0.0, dropout=0.3)
+    r = run_approach(scene, tr, World(scene, latency_s=cam.latency_s), vision=cam, step=step, seed=3,
+                     stop_after_contact_s=0.15)
+    assert r.t_contact is not None
+    assert step.guard.counts["finger_lost"] == 0

@@ -29,6 +29,7 @@ from time import perf_counter
 
 import numpy as np
 
+from vishap.vision.track import TrackerConfig
 from vishap.world.scene import Scene
 from vishap.world.trajectories import FingerTrajectory
 from vishap.world.world import World
@@ -171,6 +172,7 @@ def run_approach(
     P_f = np.array([traj.position(k * dt) for k in range(n_ticks + 1)])  # the finger, sampled once
     V_f = np.gradient(P_f, dt, axis=0)
     t_next_cam = 0.0
+    misses = 0  # missed detections in a row
     pending: list[tuple[float, float, np.ndarray | None]] = []  # (arrival, capture time, measurement)
     dev = np.empty((n_ticks, 3))
     subj = np.empty(n_ticks, dtype=object)
@@ -197,8 +199,12 @@ def run_approach(
         state, p_dev = step.read()
         while pending and pending[0][0] <= t + 1e-12:
             _, t_cap, meas = pending.pop(0)
+            # a drop-out is a missed detection of a finger still in view, not the hand leaving it: vision's
+            # tracker coasts and reports its confidence decaying with the misses in a row (lost only once
+            # that falls under the guard's floor), not 0 at the first miss (the guard would hold at once)
+            misses = 0 if meas is not None else misses + 1
             rec, _, _ = scene_step.step(t_cap, meas is not None, nan3 if meas is None else meas,
-                                        0.0 if meas is None else 1.0, p_dev)
+                                        _DECAY ** misses, p_dev, lost=False)
         # the finger pushes on the passive object
         p_f, v_f = P_f[k], V_f[k]
         s = scene.objects[rec.subject] if rec.subject >= 0 else obj
@@ -263,6 +269,9 @@ def run_approach(
         d_f[sel], f_n[sel], through, ratio, log, ready, checks,
     )
 
+
+#: the vision tracker's confidence after each missed detection in a row (its own setting)
+_DECAY = TrackerConfig().confidence_decay
 
 #: issue 16's "ready at the touch": still for this long before it, …
 READY_WINDOW_S = 0.020
