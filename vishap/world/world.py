@@ -82,7 +82,8 @@ class World:
 
     The approach near the finger (issue 16's "ready at the touch"): within ``lock_m`` of the surface
     the waiting point ignores moves under ``deadband_m``;
-    ``freeze_s`` before the touch (the reach fit's time; or within ``hold_m``) it is frozen and moves
+    ``freeze_s`` before the touch (the later of the reach fit's time and the straight line's at the closing
+    speed; never by the height of one noisy sample) it is frozen and moves
     only when the landing would leave half the finger's room on the passive face (``inside_m`` inside
     its edge); over the last ``runup_s`` the target runs up sideways at the finger's fitted velocity so
     that the finger lands on a face moving with it, timed for when the servo reaches the sample
