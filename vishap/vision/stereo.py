@@ -167,12 +167,21 @@ class RefineConfig:
     min_points: int = 8             # edge points needed per view
     match_search_px: int = 3        # "match": disparity searched ± this around the masks' disparity
     match_masked: bool = False
+    axis_from_radii: float = 0.1    # "axis": side-edge points from this many cap radii behind the cap centre …
+    axis_to_radii: float = 1.5      # … to this many (the first joint, 2 radii behind, widens the finger before it)
+    axis_max_tilt_deg: float = 60.0  # a finger nearer the rows than 90° − this has too few rows
+    axis_width_tol: float = 0.3     # an edge point must lie a cap radius from the axis within this fraction
+    axis_min_points: int = 4        # edge points needed on each side of the finger, per view
+    axis_max_residual_px: float = 0.75  # an edge point this far from its fitted line is dropped
+    axis_weight: float = 0.5        # the pair's disparity: this share from the axis, the rest from the cap fits
+    axis_at_cap: bool = False       # the axis's disparity at the cap centre's row (extrapolated) instead of at
+    #   the mean row of its edge points, where the line is best known (a point 0.6–0.9 radii behind the cap)
 
     def __post_init__(self) -> None:
         from vishap._core.errors import VisionError
 
-        if self.method not in ("none", "edges", "edges_separate", "match"):
-            raise VisionError(f"refine method: expected none, edges, edges_separate or match, got {self.method!r}")
+        if self.method not in ("none", "edges", "edges_separate", "match", "axis"):
+            raise VisionError(f"refine method: expected none, edges, edges_separate, match or axis, got {self.method!r}")
 
 
 @dataclass
@@ -291,13 +300,16 @@ def fit_circles_shared_row(pts_left: np.ndarray, pts_right: np.ndarray, *, itera
 
 
 def refine_tip_pair(rig: StereoRig, left: np.ndarray, right: np.ndarray, tip_left, tip_right,
-                    config: RefineConfig = RefineConfig()) -> RefinedPair:
+                    config: RefineConfig = RefineConfig(), *, masks: dict | None = None) -> RefinedPair:
     """Refine a matched pair of cap centres (``Fingertip`` results in raw pixels: ``uv``,
-    ``cap_radius_px``, ``direction``) on the images; see :class:`RefineConfig`."""
+    ``cap_radius_px``, ``direction``) on the images; see :class:`RefineConfig`. ``masks``
+    (method ``"axis"``): per view ``(skin mask, raw pixel of its (0, 0))``."""
     if config.method == "none":
         return RefinedPair(False, reason="no refinement")
     if config.method == "match":
         return _refine_by_match(rig, left, right, tip_left, tip_right, config)
+    if config.method == "axis":
+        return _refine_by_axis(rig, masks, tip_left, tip_right, config)
     from vishap.vision.fingertip import fit_circle
 
     pts = {}
@@ -324,6 +336,37 @@ def refine_tip_pair(rig: StereoRig, left: np.ndarray, right: np.ndarray, tip_lef
         return RefinedPair(False, reason=f"refined centre {shift:.2f} px from the mask's fit")
     return RefinedPair(True, _unrectify_points(rig, cl, "left")[0], _unrectify_points(rig, cr, "right")[0],
                        float(r), (len(pts["left"]), len(pts["right"])))
+
+
+def _refine_by_axis(rig: StereoRig, masks: dict | None, tip_left, tip_right, config: RefineConfig) -> RefinedPair:
+    """The pair's disparity from the finger's side edges (:mod:`vishap.vision.axis_disparity`): each
+    view's axis line at the cap centres' mean rectified row; the left point is the axis there."""
+    from vishap._core.errors import VisionError
+    from vishap.vision.axis_disparity import axis_disparity, axis_line
+
+    if masks is None:
+        raise VisionError("refine method 'axis' needs the skin masks of both views")
+    lines = {}
+    for side, tip in (("left", tip_left), ("right", tip_right)):
+        mask, origin = masks[side]
+        lines[side] = axis_line(rig, side, mask, origin, tip, from_radii=config.axis_from_radii,
+                                to_radii=config.axis_to_radii, max_tilt_deg=config.axis_max_tilt_deg,
+                                width_tol=config.axis_width_tol, max_residual_px=config.axis_max_residual_px,
+                                min_points=config.axis_min_points)
+        if isinstance(lines[side], str):
+            return RefinedPair(False, reason=lines[side])
+    cl = rig.rectify_points(np.asarray(tip_left.uv, dtype=np.float64).reshape(1, 2), "left")[0]
+    cr = rig.rectify_points(np.asarray(tip_right.uv, dtype=np.float64).reshape(1, 2), "right")[0]
+    v = 0.5 * (cl[1] + cr[1])
+    cap = cl[0] - cr[0]
+    axis = axis_disparity(lines["left"], lines["right"], v if config.axis_at_cap else
+                          0.5 * (lines["left"].v_mean + lines["right"].v_mean))
+    if not abs(axis - cap) <= config.max_shift_px:
+        return RefinedPair(False, reason=f"axis disparity {axis - cap:+.2f} px from the cap fits'")
+    disp = config.axis_weight * axis + (1.0 - config.axis_weight) * cap
+    return RefinedPair(True, _unrectify_points(rig, (cl[0], v), "left")[0],
+                       _unrectify_points(rig, (cl[0] - disp, v), "right")[0], 0.0,
+                       (sum(lines["left"].points), sum(lines["right"].points)))
 
 
 def _cap_points(edge: np.ndarray, centre, direction, config: RefineConfig) -> np.ndarray | None:

@@ -1,0 +1,113 @@
+"""Disparity of the fingertip from the finger's two side edges, row by row of the rectified pair.
+
+One circle fit per view puts the cap centre's column off by 0.2–0.3 px on a binary skin mask: its
+edge crossings lie on a half-pixel grid, and the few of them on the cap carry one set of rounding
+errors. Behind the cap the distal phalanx is a cylinder whose two side edges cross many rectified
+rows. In each such row the midpoint of the two edge crossings is the column of the finger's axis
+(for a cylinder, the silhouette's two tangent lines lie symmetrically about the axis's image), and
+one rectified row is one epipolar plane: the left and right midpoints of a row are the same 3-D point
+of the axis, so their difference is its disparity, with no row to match. A 3-D line maps to a line
+in (u, v, disparity), so the disparity is linear in the row along the axis; a robust line fit over
+the rows between the cap and the first joint, evaluated at the cap centre's row, gives the cap
+centre's disparity (the centre lies on the axis). On a tilted edge the crossings' rounding errors
+change from row to row, so the fit averages them instead of keeping one set.
+
+Limits: the finger must cross rows (a finger lying along the rows has no two side edges in a row:
+``max_tilt_deg``), and both edges must be free of other skin (a finger in front of the palm or
+another finger merges with it in the mask: such rows are dropped by their width).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from vishap.vision.rig import StereoRig
+
+__all__ = ["AxisLine", "axis_line", "axis_disparity"]
+
+
+@dataclass
+class AxisLine:
+    """The image of the finger's axis behind the cap in one rectified view: ``u = u_c + slope·(v − v_c)``."""
+
+    centre: np.ndarray        # (2,) rectified cap centre (u_c from the fit, v_c the cap's row)
+    slope: float              # axis column per row
+    points: tuple[int, int]   # edge crossings used on the left and on the right side of the axis
+    rms_px: float             # residual of the crossings about the two fitted edge lines
+    v_mean: float             # mean row of the crossings used (where the line's column is best known)
+
+    def u_at(self, v: float) -> float:
+        return float(self.centre[0] + self.slope * (v - self.centre[1]))
+
+
+def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_radii: float, to_radii: float,
+              max_tilt_deg: float, width_tol: float, max_residual_px: float, min_points: int) -> AxisLine | str:
+    """The axis's image behind the cap of one view (``tip``: a Fingertip in raw pixels with ``uv``,
+    ``cap_radius_px`` and ``direction``) from the skin ``mask`` whose pixel (0, 0) is raw pixel
+    ``origin``; or a reason why there is none.
+
+    The mask's edge crossings (midpoints between a skin and a non-skin neighbour, along rows and
+    columns) around the finger behind the cap are taken to the rectified image. A crossing counts
+    as a point of a side edge of the cylinder when it lies between ``from_radii`` and ``to_radii``
+    radii behind the centre along the axis (before: the cap's own outline; after: the first joint,
+    where the middle phalanx widens the finger) and within ``width_tol`` of a radius from the axis
+    (a side where other skin touches the finger is further). Two parallel lines with one direction
+    are fitted to the two sides' points (total least squares), points further than
+    ``max_residual_px`` from their line are dropped, and the fit repeats; the axis is the mid-line.
+    The detector's direction only seeds the axis, which the fit then measures."""
+    from vishap.vision.fingertip import _edge_points
+
+    r = float(tip.cap_radius_px if tip.cap_radius_px > 0 else tip.radius_px)
+    uv = np.asarray(tip.uv, dtype=np.float64)
+    d_raw = np.asarray(tip.direction, dtype=np.float64)
+    # the crossings of the mask around the finger's first to_radii + 1 radii behind the centre
+    ends = np.vstack([uv, uv + (to_radii + 1.0) * r * d_raw]) - np.asarray(origin, dtype=np.float64)
+    m = r * (1.0 + width_tol) + 2.0
+    h, w = mask.shape
+    x0, y0 = (max(int(np.floor(ends[:, k].min() - m)), 0) for k in (0, 1))
+    x1, y1 = (min(int(np.ceil(ends[:, k].max() + m)) + 1, lim) for k, lim in ((0, w), (1, h)))
+    if x1 - x0 < 3 or y1 - y0 < 3:
+        return f"the finger behind the cap is outside the {side} view's mask"
+    e = _edge_points(mask[y0:y1, x0:x1])
+    # crossings at the crop's border are the crop's, not the finger's
+    e = e[(e[:, 0] > 0) & (e[:, 0] < x1 - x0 - 1) & (e[:, 1] > 0) & (e[:, 1] < y1 - y0 - 1)]
+    if len(e) < 2 * min_points:
+        return f"{len(e)} edge points behind the cap in the {side} view"
+    raw = e + (x0 + float(origin[0]), y0 + float(origin[1]))
+    pts = rig.rectify_points(np.vstack([uv, uv + 2.0 * r * d_raw, raw]), side)
+    c, p = pts[0], pts[2:]
+    d = pts[1] - pts[0]
+    d /= max(np.hypot(*d), 1e-12)
+    res = None
+    for _ in range(3):
+        n = np.array([-d[1], d[0]])                           # normal of the axis, towards the "right" side
+        rel = p - c
+        along, off = rel @ d, rel @ n
+        base = (along >= from_radii * r) & (along <= to_radii * r) & (np.abs(np.abs(off) - r) <= width_tol * r)
+        use = {s: base & ((off > 0) if s == "r" else (off < 0)) for s in ("l", "r")}
+        if res is not None:
+            use = {s: use[s] & (np.abs(res) <= max_residual_px) for s in ("l", "r")}
+        nl, nr = int(use["l"].sum()), int(use["r"].sum())
+        if min(nl, nr) < min_points:
+            return f"{nl} and {nr} edge points on the finger's two sides in the {side} view (need {min_points} each)"
+        ml, mr = p[use["l"]].mean(axis=0), p[use["r"]].mean(axis=0)
+        q = np.vstack([p[use["l"]] - ml, p[use["r"]] - mr])
+        _, _, vt = np.linalg.svd(q, full_matrices=False)
+        d_new = vt[0] if vt[0] @ d > 0 else -vt[0]            # the lines' direction, into the finger
+        n = np.array([-d_new[1], d_new[0]])
+        mid = 0.5 * (ml + mr)
+        res = np.where(use["l"] | ~use["r"], (p - ml) @ n, (p - mr) @ n)
+        c = mid - ((mid - c) @ d_new) * d_new                 # the mid-line's point beside the cap centre
+        d = d_new
+    if abs(d[1]) < np.cos(np.deg2rad(max_tilt_deg)):
+        return f"the finger lies within {90 - max_tilt_deg:.0f}° of the rows in the {side} view"
+    used = use["l"] | use["r"]
+    rms = float(np.sqrt(np.mean(np.square(res[used]))))
+    return AxisLine(c, float(d[0] / d[1]), (nl, nr), rms, float(p[used, 1].mean()))
+
+
+def axis_disparity(line_l: AxisLine, line_r: AxisLine, v_ref: float) -> float:
+    """Disparity of the axis's point on the rectified row ``v_ref`` (one epipolar plane)."""
+    return line_l.u_at(v_ref) - line_r.u_at(v_ref)
