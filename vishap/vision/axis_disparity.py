@@ -61,51 +61,60 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
 
     r = float(tip.cap_radius_px if tip.cap_radius_px > 0 else tip.radius_px)
     uv = np.asarray(tip.uv, dtype=np.float64)
-    d_raw = np.asarray(tip.direction, dtype=np.float64)
+    d0 = np.asarray(tip.direction, dtype=np.float64)
     # the crossings of the mask around the finger's first to_radii + 1 radii behind the centre
-    ends = np.vstack([uv, uv + (to_radii + 1.0) * r * d_raw]) - np.asarray(origin, dtype=np.float64)
+    cx, cy = uv[0] - origin[0], uv[1] - origin[1]
+    ex, ey = cx + (to_radii + 1.0) * r * d0[0], cy + (to_radii + 1.0) * r * d0[1]
     m = r * (1.0 + width_tol) + 2.0
     h, w = mask.shape
-    x0, y0 = (max(int(np.floor(ends[:, k].min() - m)), 0) for k in (0, 1))
-    x1, y1 = (min(int(np.ceil(ends[:, k].max() + m)) + 1, lim) for k, lim in ((0, w), (1, h)))
+    x0, y0 = max(int(min(cx, ex) - m), 0), max(int(min(cy, ey) - m), 0)
+    x1, y1 = min(int(max(cx, ex) + m) + 2, w), min(int(max(cy, ey) + m) + 2, h)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return f"the finger behind the cap is outside the {side} view's mask"
     e = _edge_points(mask[y0:y1, x0:x1])
-    # crossings at the crop's border are the crop's, not the finger's
-    e = e[(e[:, 0] > 0) & (e[:, 0] < x1 - x0 - 1) & (e[:, 1] > 0) & (e[:, 1] < y1 - y0 - 1)]
-    if len(e) < 2 * min_points:
-        return f"{len(e)} edge points behind the cap in the {side} view"
-    raw = e + (x0 + float(origin[0]), y0 + float(origin[1]))
-    pts = rig.rectify_points(np.vstack([uv, uv + 2.0 * r * d_raw, raw]), side)
+    # crossings at the crop's border are the crop's, not the finger's; then a first, loose selection
+    # about the detector's axis (its direction is coarse)
+    rel = e - (cx - x0, cy - y0)
+    along = rel @ d0
+    off = np.abs(rel[:, 0] * d0[1] - rel[:, 1] * d0[0])
+    sel = (e[:, 0] > 0) & (e[:, 0] < x1 - x0 - 1) & (e[:, 1] > 0) & (e[:, 1] < y1 - y0 - 1) \
+        & (along >= -0.5 * r) & (along <= (to_radii + 0.5) * r) & (off >= 0.4 * r) & (off <= 1.6 * r)
+    if np.count_nonzero(sel) < 2 * min_points:
+        return f"{np.count_nonzero(sel)} edge points behind the cap in the {side} view"
+    e = e[sel] + (x0 + origin[0], y0 + origin[1])
+    pts = rig.rectify_points(np.vstack([uv, uv + 2.0 * r * d0, e]), side)
     c, p = pts[0], pts[2:]
-    d = pts[1] - pts[0]
-    d /= max(np.hypot(*d), 1e-12)
-    res = None
-    for _ in range(3):
-        n = np.array([-d[1], d[0]])                           # normal of the axis, towards the "right" side
+    d = pts[1] - c
+    d /= np.hypot(d[0], d[1]) + 1e-12
+    keep = True
+    lo, hi, tol = from_radii * r, to_radii * r, width_tol * r
+    for _ in range(2):
         rel = p - c
-        along, off = rel @ d, rel @ n
-        base = (along >= from_radii * r) & (along <= to_radii * r) & (np.abs(np.abs(off) - r) <= width_tol * r)
-        use = {s: base & ((off > 0) if s == "r" else (off < 0)) for s in ("l", "r")}
-        if res is not None:
-            use = {s: use[s] & (np.abs(res) <= max_residual_px) for s in ("l", "r")}
-        nl, nr = int(use["l"].sum()), int(use["r"].sum())
+        along = rel @ d
+        off = rel[:, 0] * d[1] - rel[:, 1] * d[0]            # signed distance from the axis
+        right = off > 0
+        use = keep & (along >= lo) & (along <= hi) & (np.abs(np.abs(off) - r) <= tol)
+        ul, ur = use & ~right, use & right
+        nl, nr = int(np.count_nonzero(ul)), int(np.count_nonzero(ur))
         if min(nl, nr) < min_points:
             return f"{nl} and {nr} edge points on the finger's two sides in the {side} view (need {min_points} each)"
-        ml, mr = p[use["l"]].mean(axis=0), p[use["r"]].mean(axis=0)
-        q = np.vstack([p[use["l"]] - ml, p[use["r"]] - mr])
-        _, _, vt = np.linalg.svd(q, full_matrices=False)
-        d_new = vt[0] if vt[0] @ d > 0 else -vt[0]            # the lines' direction, into the finger
-        n = np.array([-d_new[1], d_new[0]])
+        reach = min(along[ul].max(), along[ur].max())
+        if reach < 0.7 * hi:  # a cap's own outline stays within a radius of its centre
+            return f"the finger's sides end {reach / r:.2f} radii behind the cap in the {side} view"
+        ml, mr = p[ul].sum(axis=0) / nl, p[ur].sum(axis=0) / nr
+        q = p - np.where(right[:, None], mr, ml)              # each side about its own mean
+        S = q[use].T @ q[use]
+        ang = 0.5 * np.arctan2(2.0 * S[0, 1], S[0, 0] - S[1, 1])  # the lines' common direction (total least squares)
+        dn = np.array([np.cos(ang), np.sin(ang)])
+        d = dn if dn @ d > 0 else -dn
         mid = 0.5 * (ml + mr)
-        res = np.where(use["l"] | ~use["r"], (p - ml) @ n, (p - mr) @ n)
-        c = mid - ((mid - c) @ d_new) * d_new                 # the mid-line's point beside the cap centre
-        d = d_new
+        c = mid - ((mid - c) @ d) * d                         # the mid-line's point beside the cap centre
+        res = q[:, 0] * d[1] - q[:, 1] * d[0]                 # distance from the own side's line
+        keep = np.abs(res) <= max_residual_px
     if abs(d[1]) < np.cos(np.deg2rad(max_tilt_deg)):
         return f"the finger lies within {90 - max_tilt_deg:.0f}° of the rows in the {side} view"
-    used = use["l"] | use["r"]
-    rms = float(np.sqrt(np.mean(np.square(res[used]))))
-    return AxisLine(c, float(d[0] / d[1]), (nl, nr), rms, float(p[used, 1].mean()))
+    rms = float(np.sqrt(np.mean(np.square(res[use]))))
+    return AxisLine(c, float(d[0] / d[1]), (nl, nr), rms, float(p[use, 1].mean()))
 
 
 def axis_disparity(line_l: AxisLine, line_r: AxisLine, v_ref: float) -> float:
