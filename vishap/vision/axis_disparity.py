@@ -1,28 +1,33 @@
-"""Disparity of the fingertip from the finger's two side edges, row by row of the rectified pair.
+"""Disparity of the fingertip from the finger's two side edges (the pipeline's default refinement).
 
 One circle fit per view puts the cap centre's column off by 0.2–0.3 px on a binary skin mask: its
 edge crossings lie on a half-pixel grid, and the few of them on the cap carry one set of rounding
-errors. Behind the cap the distal phalanx is a cylinder whose two side edges cross many rectified
-rows. In each such row the midpoint of the two edge crossings is the column of the finger's axis
-(for a cylinder, the silhouette's two tangent lines lie symmetrically about the axis's image), and
-one rectified row is one epipolar plane: the left and right midpoints of a row are the same 3-D point
-of the axis, so their difference is its disparity, with no row to match. A 3-D line maps to a line
-in (u, v, disparity), so the disparity is linear in the row along the axis; a robust line fit over
-the rows between the cap and the first joint, evaluated at the cap centre's row, gives the cap
-centre's disparity (the centre lies on the axis). On a tilted edge the crossings' rounding errors
-change from row to row, so the fit averages them instead of keeping one set.
+errors. Behind the cap the distal phalanx is a cylinder: its two side edges are two parallel lines
+whose mid-line is the image of the finger's axis (for a cylinder the silhouette's two tangent planes
+lie symmetrically about the plane through the camera and the axis). Fitted to the mask's edge
+crossings over the cylinder, twice the points of the cap fit, they place the axis to a few
+hundredths of a pixel on a tilted finger, where the crossings' rounding errors change from point to
+point. One rectified row is one epipolar plane, so the two views' axis columns on one row are the
+same 3-D point of the axis and their difference is its disparity, with no row to match.
 
-Limits: the finger must cross rows (a finger lying along the rows has no two side edges in a row:
-``max_tilt_deg``), and both edges must be free of other skin (a finger in front of the palm or
-another finger merges with it in the mask: such rows are dropped by their width).
+The axis line is best known at the mean row of its edge points, about 0.6–0.9 cap radii behind the
+cap centre; extrapolated to the cap centre's row the error of its slope (a few hundredths) takes
+the gain back. So the refinement takes the axis's disparity on the mean row — a point behind the
+cap, nearer or further by the finger's slant in depth — and averages it with the cap fits'
+disparity, whose errors are unrelated to it (``RefineConfig.axis_weight``).
+
+Limits: the finger must not lie along the rows (``max_tilt_deg``: the disparity of a line along the
+rows is undefined), both sides must be free of other skin (a side touching the palm or another
+finger is dropped and the pair falls back to the cap fits), and the finger must continue behind
+the cap for most of a radius.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
+from vishap.vision.fingertip import _edge_points
 from vishap.vision.rig import StereoRig
 
 __all__ = ["AxisLine", "axis_line", "axis_disparity"]
@@ -30,9 +35,10 @@ __all__ = ["AxisLine", "axis_line", "axis_disparity"]
 
 @dataclass
 class AxisLine:
-    """The image of the finger's axis behind the cap in one rectified view: ``u = u_c + slope·(v − v_c)``."""
+    """The image of the finger's axis behind the cap in one rectified view: ``u = u_c + slope·(v − v_c)``
+    (``centre``: the axis's point beside the cap centre)."""
 
-    centre: np.ndarray        # (2,) rectified cap centre (u_c from the fit, v_c the cap's row)
+    centre: np.ndarray        # (2,) the axis's point nearest the cap centre (rectified pixels)
     slope: float              # axis column per row
     points: tuple[int, int]   # edge crossings used on the left and on the right side of the axis
     rms_px: float             # residual of the crossings about the two fitted edge lines
@@ -56,9 +62,9 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
     (a side where other skin touches the finger is further). Two parallel lines with one direction
     are fitted to the two sides' points (total least squares), points further than
     ``max_residual_px`` from their line are dropped, and the fit repeats; the axis is the mid-line.
-    The detector's direction only seeds the axis, which the fit then measures."""
-    from vishap.vision.fingertip import _edge_points
-
+    The detector's direction only seeds the axis, which the fit then measures. Both sides must
+    reach 0.7 ``to_radii`` behind the centre (the outline of a cap with no finger behind it stops
+    within a radius)."""
     r = float(tip.cap_radius_px if tip.cap_radius_px > 0 else tip.radius_px)
     uv = np.asarray(tip.uv, dtype=np.float64)
     d0 = np.asarray(tip.direction, dtype=np.float64)

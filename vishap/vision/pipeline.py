@@ -278,8 +278,8 @@ class VisionPipeline:
         return replace(spf, p_cam=spf.p_cam * scale, cov_cam=spf.cov_cam * scale ** 2, disparity_px=d)
 
     def _refine_pair(self, images, tl, tr, sp):
-        """The chosen pair's cap centres refined on the images (stereo.refine_tip_pair); the masks'
-        centres are kept when the refinement fails or its pair fails the stereo checks."""
+        """The chosen pair's cap centres refined (stereo.refine_tip_pair, on the images or the views'
+        skin masks); the masks' centres are kept when the refinement fails or its pair fails the stereo checks."""
         ts = time.perf_counter()
         ref = refine_tip_pair(self.rig, images[0], images[1], tl, tr, self.config.refine, masks=self._masks)
         out = {"left": tl.uv, "right": tr.uv}, sp

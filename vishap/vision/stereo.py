@@ -138,20 +138,24 @@ def dense_tip(matcher: DenseMatcher, left: np.ndarray, right: np.ndarray, uv_lef
 # The two cap circles are fitted independently on binary skin masks, whose edge crossings sit on a
 # half-pixel grid: each centre is off by 0.2–0.3 px, and the disparity (their difference) by as
 # much again, which is 2–3 mm of depth at 0.55 m (z²/(f·B) ≈ 9 mm per pixel). The refinements
-# below use the images themselves, in the rectified geometry where the tip lies on one row.
+# below use more of the silhouette (the finger's side edges) or the images themselves, in the
+# rectified geometry where the tip lies on one row.
 
 @dataclass(frozen=True)
 class RefineConfig:
     """Stereo refinement of the cap centres (:func:`refine_tip_pair`).
 
-    ``method``: ``"none"`` (default: the masks' cap fits); ``"edges"`` — the cap's silhouette
+    ``method``: ``"none"`` (the masks' cap fits alone); ``"axis"`` (the pipeline's default) — the
+    disparity of the finger's axis from its two side edges behind the cap on the views' skin masks,
+    on one rectified row (:mod:`vishap.vision.axis_disparity`), averaged with the cap fits' disparity
+    (``axis_weight``); ``"edges"`` — the cap's silhouette
     located to a fraction of a pixel in each image (colour profiles across the edge) and one circle
     pair fitted to both views with a shared rectified row and radius; ``"edges_separate"`` — the
     same edges, a circle per view; ``"match"`` — ZNCC of the left cap patch along the right
     rectified row, sub-pixel by a parabola (``match_masked``: only the template's inscribed disk
-    counts). Off by default: on anti-aliased pairs the edges recover the disparity to a few
-    hundredths of a pixel, but on the renderer's pixel-quantised silhouettes they are worse than
-    the masks, and the match measures the finger's surface, in front of the cap's centre
+    counts). The image methods are options: on anti-aliased pairs the edges recover the disparity
+    to a few hundredths of a pixel, but on the renderer's pixel-quantised silhouettes they are worse
+    than the masks, and the match measures the finger's surface, in front of the cap's centre
     (docs/vision.md, "3-D fingertip accuracy").
     """
 
@@ -169,7 +173,8 @@ class RefineConfig:
     match_masked: bool = False
     axis_from_radii: float = 0.1    # "axis": side-edge points from this many cap radii behind the cap centre …
     axis_to_radii: float = 1.5      # … to this many (the first joint, 2 radii behind, widens the finger before it)
-    axis_max_tilt_deg: float = 60.0  # a finger nearer the rows than 90° − this has too few rows
+    axis_max_tilt_deg: float = 60.0  # a finger within 90° − this of the rows is refused (a line along a
+    #   rectified row has no disparity of its own on that row)
     axis_width_tol: float = 0.3     # an edge point must lie a cap radius from the axis within this fraction
     axis_min_points: int = 4        # edge points needed on each side of the finger, per view
     axis_max_residual_px: float = 0.75  # an edge point this far from its fitted line is dropped
