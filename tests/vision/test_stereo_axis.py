@@ -104,3 +104,30 @@ def test_axis_refinement_refuses_what_it_cannot_measure(ideal_rig):
     assert not ref.ok and "sides end" in ref.reason
     with pytest.raises(VisionError, match="skin masks"):
         refine_tip_pair(ideal_rig, None, None, tl, tr, RefineConfig(method="axis"))
+
+
+def test_the_pipeline_takes_the_disparity_from_the_side_edges_by_default(ideal_rig):
+    """The default pipeline refines the chosen pair with the side-edge axis on its own skin masks
+    (a toy finger, 640×480): the refinement succeeds on most tracked pairs and the 3-D tip stays
+    on the truth; the masks of both views reach it."""
+    from vishap.vision.capture import StereoFrame
+    from vishap.vision.pipeline import PipelineConfig, VisionPipeline
+    from vishap.vision.skin_model import SkinModel
+    from vishap.vision.toy import ToyScene
+
+    train = ToyScene(ideal_rig, seed=11).frame(0, (0.0, 0.0, 0.5))
+    skin = SkinModel.fit([train.left], [train.labels_left])
+    scene = ToyScene(ideal_rig, seed=4)
+    pipe = VisionPipeline(ideal_rig, skin_model=skin, config=PipelineConfig(learn_frames=3))
+    assert pipe.config.refine.method == "axis"
+    err = []
+    for i in range(30):
+        p = np.array([-0.03 + 0.002 * i, 0.005, 0.5 + 0.001 * i])
+        f = scene.frame(i / 30, p, hand=i >= 3)
+        e = pipe.process(StereoFrame(i, i / 30, f.left, f.right))
+        if i >= 6:
+            assert e.found, e.reason
+            err.append(np.linalg.norm(e.p_cam - f.tip_cam))
+    failed, ok = pipe.refine_stats
+    assert ok >= 0.8 * (ok + failed) and ok >= 20, pipe.refine_stats
+    assert np.sqrt(np.mean(np.square(err))) < 0.003
