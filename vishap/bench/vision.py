@@ -6,8 +6,8 @@ would pick instead, on the same labelled frames.
   torch/kornia batch backend (checked mask-for-mask against NumPy/OpenCV), and OpenCV's MOG2, KNN,
   CNT and GSOC background subtractors with the same skin model and median filter;
 * stereo: sparse rectified triangulation against dense StereoBM / StereoSGBM sampled at the tip;
-* 3-D tip: the masks' cap fits, the disparity filter, and refinements on the images (sub-pixel
-  edges per view or jointly, ZNCC along the rectified row), with the error decomposed by depth
+* 3-D tip: the masks' cap fits, the side-edge axis, the disparity filter, and refinements on the
+  images (sub-pixel edges per view or jointly, ZNCC along the rectified row), with the error decomposed by depth
   (``vision_stereo_refinement.png``);
 * Kalman: this filter against ``cv2.KalmanFilter`` and filterpy on the same measurements.
 
@@ -141,16 +141,21 @@ def _bench_pipeline(folder, n, skin):
 
 def refinement_variants() -> dict:
     """The 3-D tip's variants charted against each other (speed against 3-D RMS): the masks' cap
-    centres as before, the disparity filter, a median of 3 (paper: 5), and the stereo refinements on the
-    images (stereo.RefineConfig) a user would pick instead."""
+    centres alone, with the disparity filter, with a median of 3 (paper: 5), the side-edge axis
+    (shipped), and the stereo refinements on the images (stereo.RefineConfig) a user would pick instead."""
     from vishap.vision.pipeline import PipelineConfig
     from vishap.vision.segment import SegmentConfig
     from vishap.vision.stereo import RefineConfig
 
+    caps = RefineConfig(method="none")
     return {
-        "mask cap fits (before: no disparity filter)": PipelineConfig(disparity_q=0),
-        "mask cap fits + disparity filter (shipped)": PipelineConfig(),
-        "mask cap fits, median 3 + disparity filter": PipelineConfig(segment=SegmentConfig(coarse=4, median=3)),
+        "mask cap fits (no disparity filter)": PipelineConfig(refine=caps, disparity_q=0),
+        "mask cap fits + disparity filter (before)": PipelineConfig(refine=caps),
+        "cap fits + side-edge axis + disparity filter (shipped)": PipelineConfig(),
+        "cap fits + side-edge axis, no disparity filter": PipelineConfig(disparity_q=0),
+        "side-edge axis alone + disparity filter": PipelineConfig(refine=RefineConfig(method="axis", axis_weight=1.0)),
+        "mask cap fits, median 3 + disparity filter": PipelineConfig(refine=caps,
+                                                                     segment=SegmentConfig(coarse=4, median=3)),
         "sub-pixel image edges, a circle per view": PipelineConfig(refine=RefineConfig(method="edges_separate")),
         "sub-pixel image edges, joint fit (shared row, radius)": PipelineConfig(refine=RefineConfig(method="edges")),
         "ZNCC of the left cap along the right row": PipelineConfig(refine=RefineConfig(method="match")),
@@ -166,7 +171,7 @@ def _bench_refinement(folder, n, skin, quick=False):
     out = {}
     variants = refinement_variants()
     if quick:  # before and shipped only
-        variants = {k: v for i, (k, v) in enumerate(variants.items()) if i in (0, 1)}
+        variants = {k: v for i, (k, v) in enumerate(variants.items()) if i in (1, 2)}
     for name, cfg in variants.items():
         r = evaluate_sequence(folder, skin_model=skin, config=cfg, max_frames=n, seg_every=10 ** 9)
         out[name] = {k: r.get(k) for k in ("ms_per_pair", "ms_per_pair_tracked", "ms_per_pair_full", "tip2d_rms_px",
@@ -176,19 +181,28 @@ def _bench_refinement(folder, n, skin, quick=False):
 
 
 def _chart_refinement(record, path):
+    """Left: one point per variant, the mean over the sequences of the 3-D RMS without gross errors
+    (bar: the sequences' range) against the median of their ms per tracked pair; right: the error
+    decomposition of the first sequence, before against shipped."""
     fig, (a1, a2) = new_figure(1, 2, figsize=(14, 5.5))
     seqs = {k: v for k, v in record["sequences"].items() if "refinement" in v}
-    for sname, rec in seqs.items():
-        tag = f"{sname}: " if len(seqs) > 1 else ""
-        for k, (name, r) in enumerate(rec["refinement"].items()):
+    per = {}
+    for rec in seqs.values():
+        for name, r in rec["refinement"].items():
             x, y = r.get("ms_per_pair_tracked") or r.get("ms_per_pair"), r.get("tip3d_rms_mm_without_gross")
-            if x is None or y is None:
-                continue
-            a1.scatter(x, y, marker="os^vD<>"[k % 7])
-            a1.annotate(f"{tag}{name} ({r['gross_errors']} gross)", (x, y), fontsize=7)
+            if x is not None and y is not None:
+                per.setdefault(name, []).append((x, y, r["gross_errors"]))
+    for k, (name, v) in enumerate(per.items()):
+        xs, ys, gross = (np.array(c) for c in zip(*v))
+        x, y = float(np.median(xs)), float(np.mean(ys))
+        a1.errorbar(x, y, yerr=[[y - ys.min()], [ys.max() - y]], fmt="os^vD<>P*Xh"[k % 10], capsize=3, color=f"C{k % 10}")
+        a1.annotate(f"{name} ({len(v)} seq., {int(gross.sum())} gross)", (x, y), fontsize=7, xytext=(4, 2),
+                    textcoords="offset points")
     if seqs:  # the decomposition of the first sequence: before against shipped
         sname, rec = next(iter(seqs.items()))
-        for k, name in enumerate(list(rec["refinement"])[:2]):
+        pair = [n for n in rec["refinement"] if n.endswith("(before)")] + \
+            [n for n in rec["refinement"] if n.endswith("(shipped)")]
+        for k, name in enumerate(pair[:2]):
             bd = rec["refinement"][name]["by_depth"] or {}
             xs = np.arange(len(bd))
             for j, (key, label) in enumerate((("u_left_px", "u left"), ("u_right_px", "u right"),
@@ -198,8 +212,9 @@ def _chart_refinement(record, path):
             a2.set_xticks(xs, [f"{b} m ({bd[b]['frames']} frames)" for b in bd])
         a2.set_title(f"{sname}: error decomposition by true depth (plain: before, hatched: shipped)", fontsize=9)
     a1.axhline(1.5, color="k", lw=0.6, ls=":")
-    a1.set(xlabel="ms per tracked stereo pair (median)", ylabel="tip 3-D RMS without gross errors, mm",
-           title="3-D fingertip: cap fits, disparity filter, stereo refinements")
+    a1.set(xlabel="ms per tracked stereo pair (median over the sequences)",
+           ylabel="tip 3-D RMS without gross errors, mm (mean, range)",
+           title="3-D fingertip: cap fits, side-edge axis, disparity filter, stereo refinements")
     a2.set(ylabel="RMS of the reported tips, px (rectified)")
     a1.grid(alpha=0.3)
     a2.grid(alpha=0.3)

@@ -138,20 +138,24 @@ def dense_tip(matcher: DenseMatcher, left: np.ndarray, right: np.ndarray, uv_lef
 # The two cap circles are fitted independently on binary skin masks, whose edge crossings sit on a
 # half-pixel grid: each centre is off by 0.2–0.3 px, and the disparity (their difference) by as
 # much again, which is 2–3 mm of depth at 0.55 m (z²/(f·B) ≈ 9 mm per pixel). The refinements
-# below use the images themselves, in the rectified geometry where the tip lies on one row.
+# below use more of the silhouette (the finger's side edges) or the images themselves, in the
+# rectified geometry where the tip lies on one row.
 
 @dataclass(frozen=True)
 class RefineConfig:
     """Stereo refinement of the cap centres (:func:`refine_tip_pair`).
 
-    ``method``: ``"none"`` (default: the masks' cap fits); ``"edges"`` — the cap's silhouette
+    ``method``: ``"none"`` (the masks' cap fits alone); ``"axis"`` (the pipeline's default) — the
+    disparity of the finger's axis from its two side edges behind the cap on the views' skin masks,
+    on one rectified row (:mod:`vishap.vision.axis_disparity`), averaged with the cap fits' disparity
+    (``axis_weight``); ``"edges"`` — the cap's silhouette
     located to a fraction of a pixel in each image (colour profiles across the edge) and one circle
     pair fitted to both views with a shared rectified row and radius; ``"edges_separate"`` — the
     same edges, a circle per view; ``"match"`` — ZNCC of the left cap patch along the right
     rectified row, sub-pixel by a parabola (``match_masked``: only the template's inscribed disk
-    counts). Off by default: on anti-aliased pairs the edges recover the disparity to a few
-    hundredths of a pixel, but on the renderer's pixel-quantised silhouettes they are worse than
-    the masks, and the match measures the finger's surface, in front of the cap's centre
+    counts). The image methods are options: on anti-aliased pairs the edges recover the disparity
+    to a few hundredths of a pixel, but on the renderer's pixel-quantised silhouettes they are worse
+    than the masks, and the match measures the finger's surface, in front of the cap's centre
     (docs/vision.md, "3-D fingertip accuracy").
     """
 
@@ -167,12 +171,22 @@ class RefineConfig:
     min_points: int = 8             # edge points needed per view
     match_search_px: int = 3        # "match": disparity searched ± this around the masks' disparity
     match_masked: bool = False
+    axis_from_radii: float = 0.1    # "axis": side-edge points from this many cap radii behind the cap centre …
+    axis_to_radii: float = 1.5      # … to this many (the first joint, 2 radii behind, widens the finger before it)
+    axis_max_tilt_deg: float = 60.0  # a finger within 90° − this of the rows is refused (a line along a
+    #   rectified row has no disparity of its own on that row)
+    axis_width_tol: float = 0.3     # an edge point must lie a cap radius from the axis within this fraction
+    axis_min_points: int = 4        # edge points needed on each side of the finger, per view
+    axis_max_residual_px: float = 0.75  # an edge point this far from its fitted line is dropped
+    axis_weight: float = 0.5        # the pair's disparity: this share from the axis, the rest from the cap fits
+    axis_at_cap: bool = False       # the axis's disparity at the cap centre's row (extrapolated) instead of at
+    #   the mean row of its edge points, where the line is best known (a point 0.6–0.9 radii behind the cap)
 
     def __post_init__(self) -> None:
         from vishap._core.errors import VisionError
 
-        if self.method not in ("none", "edges", "edges_separate", "match"):
-            raise VisionError(f"refine method: expected none, edges, edges_separate or match, got {self.method!r}")
+        if self.method not in ("none", "edges", "edges_separate", "match", "axis"):
+            raise VisionError(f"refine method: expected none, edges, edges_separate, match or axis, got {self.method!r}")
 
 
 @dataclass
@@ -291,13 +305,16 @@ def fit_circles_shared_row(pts_left: np.ndarray, pts_right: np.ndarray, *, itera
 
 
 def refine_tip_pair(rig: StereoRig, left: np.ndarray, right: np.ndarray, tip_left, tip_right,
-                    config: RefineConfig = RefineConfig()) -> RefinedPair:
+                    config: RefineConfig = RefineConfig(), *, masks: dict | None = None) -> RefinedPair:
     """Refine a matched pair of cap centres (``Fingertip`` results in raw pixels: ``uv``,
-    ``cap_radius_px``, ``direction``) on the images; see :class:`RefineConfig`."""
+    ``cap_radius_px``, ``direction``) on the images; see :class:`RefineConfig`. ``masks``
+    (method ``"axis"``): per view ``(skin mask, raw pixel of its (0, 0))``."""
     if config.method == "none":
         return RefinedPair(False, reason="no refinement")
     if config.method == "match":
         return _refine_by_match(rig, left, right, tip_left, tip_right, config)
+    if config.method == "axis":
+        return _refine_by_axis(rig, masks, tip_left, tip_right, config)
     from vishap.vision.fingertip import fit_circle
 
     pts = {}
@@ -324,6 +341,37 @@ def refine_tip_pair(rig: StereoRig, left: np.ndarray, right: np.ndarray, tip_lef
         return RefinedPair(False, reason=f"refined centre {shift:.2f} px from the mask's fit")
     return RefinedPair(True, _unrectify_points(rig, cl, "left")[0], _unrectify_points(rig, cr, "right")[0],
                        float(r), (len(pts["left"]), len(pts["right"])))
+
+
+def _refine_by_axis(rig: StereoRig, masks: dict | None, tip_left, tip_right, config: RefineConfig) -> RefinedPair:
+    """The pair's disparity from the finger's side edges (:mod:`vishap.vision.axis_disparity`): each
+    view's axis line at the cap centres' mean rectified row; the left point is the axis there."""
+    from vishap._core.errors import VisionError
+    from vishap.vision.axis_disparity import axis_disparity, axis_line
+
+    if masks is None:
+        raise VisionError("refine method 'axis' needs the skin masks of both views")
+    lines = {}
+    for side, tip in (("left", tip_left), ("right", tip_right)):
+        mask, origin = masks[side]
+        lines[side] = axis_line(rig, side, mask, origin, tip, from_radii=config.axis_from_radii,
+                                to_radii=config.axis_to_radii, max_tilt_deg=config.axis_max_tilt_deg,
+                                width_tol=config.axis_width_tol, max_residual_px=config.axis_max_residual_px,
+                                min_points=config.axis_min_points)
+        if isinstance(lines[side], str):
+            return RefinedPair(False, reason=lines[side])
+    cl = rig.rectify_points(np.asarray(tip_left.uv, dtype=np.float64).reshape(1, 2), "left")[0]
+    cr = rig.rectify_points(np.asarray(tip_right.uv, dtype=np.float64).reshape(1, 2), "right")[0]
+    v = 0.5 * (cl[1] + cr[1])
+    cap = cl[0] - cr[0]
+    axis = axis_disparity(lines["left"], lines["right"], v if config.axis_at_cap else
+                          0.5 * (lines["left"].v_mean + lines["right"].v_mean))
+    if not abs(axis - cap) <= config.max_shift_px:
+        return RefinedPair(False, reason=f"axis disparity {axis - cap:+.2f} px from the cap fits'")
+    disp = config.axis_weight * axis + (1.0 - config.axis_weight) * cap
+    return RefinedPair(True, _unrectify_points(rig, (cl[0], v), "left")[0],
+                       _unrectify_points(rig, (cl[0] - disp, v), "right")[0], 0.0,
+                       (sum(lines["left"].points), sum(lines["right"].points)))
 
 
 def _cap_points(edge: np.ndarray, centre, direction, config: RefineConfig) -> np.ndarray | None:
