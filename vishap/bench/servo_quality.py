@@ -48,7 +48,7 @@ READINESS_SCENES, READINESS_SEEDS = ALL_SCENES, tuple(range(10))
 #: a hold needs the device itself arrived: this close to the still target (the readiness condition's
 #: 0.5 mm on the face), …
 HOLD_ARRIVED_M = 0.0005
-#: … and still (readiness: 10 mm/s; the ±3-tick difference reads ≤ 5 mm/s at rest from one encoder count)
+#: … and still (readiness: 10 mm/s; one encoder count reads ≤ 5.4 mm/s in the ±3-tick difference)
 HOLD_STILL_M_S = 0.010
 NEAR_M = 0.020  # "near the finger"
 TOUCH_WINDOW_S = 0.100  # make/break counted over the first 100 ms of a touch
