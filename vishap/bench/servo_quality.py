@@ -368,7 +368,7 @@ def _ready_by_scene(demos: list[dict]) -> dict:
 
 
 def chart(demos: list[dict], alone: dict, out: Path) -> Path:
-    fig, axes = new_figure(2, 3, figsize=(17, 9))
+    fig, axes = new_figure(2, 4, figsize=(22, 9))
     ax = axes[0, 0]
     for kind, color in (("hold", "tab:blue"), ("approach", "tab:orange"), ("contact", "tab:green")):
         specs = [d["_spectra"][kind] for d in demos if d["_spectra"][kind] is not None]
@@ -425,6 +425,25 @@ def chart(demos: list[dict], alone: dict, out: Path) -> Path:
     ax.set_xticks([0, 1], ["gains before", "shipped gains"])
     ax.set_ylabel("µm rms above 30 Hz")
     ax.set_title("true tip vibration in a still hold", fontsize=9)
+    ready = _ready_by_scene(demos)
+    ax = axes[0, 3]
+    names = list(ready)
+    ax.bar(names, [ready[n]["touches"] for n in names], color="lightgrey", label="touches")
+    ax.bar(names, [ready[n]["ready"] for n in names], color="tab:green", label="device ready")
+    ax.set_ylabel("touches")
+    ax.set_title("device ready at the touch (device_ready; goal ≥ 9 of 10)", fontsize=9)
+    ax.legend(fontsize=8)
+    ax = axes[1, 3]
+    conds = ["still_normal", "still_tangential", "face", "inside"]
+    x = np.arange(len(conds))
+    for i, n in enumerate(names):
+        tcs = [tc for d in demos if d["scene"] == n for tc in d["ready_touches"]]
+        ax.bar(x + (i - (len(names) - 1) / 2) * 0.8 / max(len(names), 1),
+               [np.mean([tc["checks"][c] for tc in tcs]) if tcs else 0.0 for c in conds], 0.8 / max(len(names), 1), label=n)
+    ax.set_xticks(x, conds, fontsize=8)
+    ax.set_ylabel("share of touches meeting it")
+    ax.set_title("readiness conditions per scene", fontsize=9)
+    ax.legend(fontsize=8)
     return save_figure(fig, out / "servo_quality.png")
 
 
