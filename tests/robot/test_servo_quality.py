@@ -133,3 +133,16 @@ def test_the_readiness_option_reads_wall_button_and_fabric_over_seeds_0_to_9(tmp
     args.readiness, args.scenes = False, "wall,table"
     with pytest.raises(ConfigError, match="--scenes"):
         _demo_folders(args, tmp_path / "out")
+
+
+def test_the_chart_draws_from_analysed_logs(tmp_path):
+    from vishap.bench.servo_quality import chart, ready_touches
+
+    log = read_log(_log(tmp_path))
+    rec = analyse(log)
+    rec.update(scene="wall", seed=0, ready_touches=ready_touches({**log, "finger_depth": -log["device_depth"]}, "wall"))
+    alone = {k: {"hold_ripple_n_rms": 0.02, "hold_ripple_above_30hz_n_rms": 0.02, "approach_ripple_above_30hz_n_rms": 0.03,
+                 "tip_vibration_above_30hz_um_rms": 0.6} for k in ("before", "shipped")}
+    png = chart([rec], alone, tmp_path)
+    assert png.is_file() and png.stat().st_size > 10_000
+    assert len(rec["ready_touches"]) == 1  # the log's one touch, judged by device_ready
