@@ -152,3 +152,24 @@ def test_a_restarted_force_ramp_blends_from_the_held_force_without_a_step():
     assert steps.max() < 0.5  # issue 16: ≤ 0.5 N per tick (dropping the held force was one step of |held|)
     assert np.allclose(F[26], held, atol=0.02)  # at the restart the force is still the held one
     assert np.linalg.norm(F[-1] - held) > 5.0  # and the new command has taken over after the ramp
+
+
+def test_a_brief_dip_past_engage_does_not_engage_but_a_push_that_stays_does():
+    """The device's own bounce on the law's spring (or a dip while it travels at the surface) crosses
+    engage_m for a few ticks: engaging on it released the wall's lateral axes and flipped Λ back again
+    (4 changes in one wall approach); a finger's push stays there and engages after engage_s."""
+    s = ObjectGainScheduler(dt=DT)
+    s.set_subject((0.0, 0.0, 0.0), np.eye(3))
+    d = np.concatenate([np.linspace(-0.002, 0.0002, 100), np.full(100, 0.0002),  # to the surface state
+                        np.full(16, 0.00035), np.full(100, -0.0001),  # a 16 ms dip past engage_m, then back up
+                        np.full(300, 0.002)])  # a finger pushes 2 mm in and stays
+    _, _, states = _run(s, d)
+    assert states[199] == SURFACE and all(st == SURFACE for st in states[199:316])
+    k = next(i for i, st in enumerate(states) if st == ENGAGED)
+    assert k - 316 == pytest.approx(s.engage_s / DT, abs=1)
+    assert _changes(states) == 2
+    # the rule without the wait engages on the dip, and leaves again once the dwell allows
+    s0 = ObjectGainScheduler(dt=DT, engage_s=0.0)
+    s0.set_subject((0.0, 0.0, 0.0), np.eye(3))
+    _, _, states0 = _run(s0, d)
+    assert states0[205] == ENGAGED and _changes(states0) == 4

@@ -1,14 +1,24 @@
 """``vishap bench servo_quality``: what a PHANToM user would feel — force steps, buzz, speed near the
 finger, touch-downs, the stiffness the device can honestly render.
 
-1. The wall and button demos (``--seeds``, default 0–4) are run through the public entry point
+1. The wall and button demos (``--seeds``, default 0–4; ``--scenes`` may add ``fabric``;
+   ``--readiness`` runs issue 16 item 5's set, wall, button and fabric over seeds 0–9) are run through the public entry point
    (:func:`vishap.apps.run_demo`, as ``vishap demo SCENE --out DIR`` does) with the encoder model
    and ``--substeps`` (10) physics steps per servo period, each into ``OUT/demos/SCENE_SEED``; a
    folder that already holds a ``summary.json`` is read, not run again (``--logs DIR`` reads
    ``DIR/SCENE_SEED`` instead). :func:`read_log` is the one place that knows the log's channels.
 2. From each log: saturated ticks and the largest per-tick force step outside contact; Λ changes per
    approach; the command's ripple in still holds, approaches and contact (spectra); the device's
-   speed within 20 mm of the finger; make/break count and normal device speed at each touch-down.
+   speed within 20 mm of the finger; make/break count and normal device speed at each touch-down;
+   whether the device was ready at each touch (:func:`vishap.world.closed_loop.device_ready`, the
+   conditions ``bench world`` counts), summed per scene as ``demo_ready_touches``.
+
+   A *hold* (``hold_ripple_n_rms``, ``hold_ripple_above_30hz_n_rms``) is the issue's still hold: the
+   servo's target still (moved < 0.1 mm over 100 ms) outside contact, and the device itself arrived
+   and still over the same 100 ms — within ``HOLD_ARRIVED_M`` of the target and slower than
+   ``HOLD_STILL_M_S``. The target-only definition used before (most of whose figure was the device
+   still travelling into a target that had stopped: 0.67 N rms in button seed 1's first move) stays
+   beside it as ``still_target_ripple_n_rms`` and ``still_target_ripple_above_30hz_n_rms``.
 3. The servo alone, holding still and following a 30 Hz target at 0.1 m/s (the same plant, encoder
    and substeps), with the shipped gains and with the gains before issue 16 side by side: ripple and
    the *true* tip vibration (the demo logs carry only the encoder's position).
@@ -31,6 +41,15 @@ from vishap.bench._common import machine_info, new_figure, save_figure
 HELP = "force steps, buzz, speed near the finger and touch-downs in the wall/button demos; honest stiffness"
 
 SCENES = ("wall", "button")
+#: the scenes a run may name (issue 16 item 5 counts ready touches in all three)
+ALL_SCENES = ("wall", "button", "fabric")
+#: ``--readiness``: issue 16 item 5's demos with real vision
+READINESS_SCENES, READINESS_SEEDS = ALL_SCENES, tuple(range(10))
+#: a hold needs the device itself arrived: this close to the still target (the readiness condition's
+#: 0.5 mm on the face), …
+HOLD_ARRIVED_M = 0.0005
+#: … and still (readiness: 10 mm/s; one encoder count reads ≤ 5.4 mm/s in the ±3-tick difference)
+HOLD_STILL_M_S = 0.010
 NEAR_M = 0.020  # "near the finger"
 TOUCH_WINDOW_S = 0.100  # make/break counted over the first 100 ms of a touch
 HI_HZ = 30.0  # the vision rate: ripple above it is buzz, not motion
@@ -40,7 +59,9 @@ OLD_GAINS = {"kp": 800.0, "kv": 32.0, "a": 500.0, "velocity_hz": 0.0, "vision_hz
 
 def add_arguments(parser) -> None:
     parser.add_argument("--seeds", default="0,1,2,3,4", help="demo seeds (default 0,1,2,3,4)")
-    parser.add_argument("--scenes", default=",".join(SCENES), help="demos to run (default wall,button)")
+    parser.add_argument("--scenes", default=",".join(SCENES), help=f"demos to run, from {','.join(ALL_SCENES)} (default wall,button)")
+    parser.add_argument("--readiness", action="store_true",
+                        help="issue 16 item 5's set: wall, button and fabric, seeds 0-9 (overrides --scenes/--seeds)")
     parser.add_argument("--substeps", type=int, default=10, help="physics steps per servo period (default 10)")
     parser.add_argument("--logs", default=None, help="read demo outputs DIR/SCENE_SEED instead of running them")
     parser.add_argument("--seconds", type=float, default=2.0, help="length of the servo-alone runs (default 2)")
@@ -78,7 +99,8 @@ def read_log(folder) -> dict:
         "t": s("t").astype(float), "F_cmd": s("F_cmd").astype(float), "saturated": s("saturated").astype(bool),
         "in_contact": s("in_contact").astype(bool), "law_active": law, "guard": s("guard").astype(int),
         "p_device": s("device_point").astype(float), "p_finger": s("finger_point").astype(float),
-        "device_depth": depth, "X_d": s("X_d").astype(float), "lambda_state": lam, "summary": summary,
+        "device_depth": depth, "finger_depth": s("finger_depth").astype(float) if "servo/finger_depth" in g else None,
+        "X_d": s("X_d").astype(float), "lambda_state": lam, "summary": summary,
     }
 
 
@@ -108,6 +130,53 @@ def _segments_rms(F: np.ndarray, segs, fs: float, lo: float) -> tuple[float, int
             num += r * r * (b - a)
             n += b - a
     return (math.sqrt(num / n) if n else float("nan")), n
+
+
+def _window_all(ok: np.ndarray, dt: float, win_s: float = 0.1) -> np.ndarray:
+    """Ticks whose surrounding ``win_s`` (centred, as :func:`_still`'s) holds ``ok`` throughout."""
+    from scipy.ndimage import minimum_filter1d
+
+    w = max(1, int(win_s / dt / 2))
+    out = minimum_filter1d(ok.astype(np.uint8), size=2 * w + 1, mode="constant", cval=0).astype(bool)
+    return out
+
+
+def _arrived(p: np.ndarray, X_d: np.ndarray, speed: np.ndarray, dt: float) -> np.ndarray:
+    """Ticks around which (over :func:`_still`'s window) the device is within ``HOLD_ARRIVED_M`` of its
+    target and slower than ``HOLD_STILL_M_S``: the device itself holds still."""
+    err = np.linalg.norm(X_d - p, axis=1)
+    ok = np.isfinite(err) & (err <= HOLD_ARRIVED_M) & (speed <= HOLD_STILL_M_S)
+    return _window_all(ok, dt)
+
+
+def ready_touches(log: dict, scene: str) -> list[dict]:
+    """Each touch of a demo log and whether the device was ready for it, by
+    :func:`vishap.world.closed_loop.device_ready` (and each condition, ``ready_checks``).
+
+    A touch is the first tick at which the finger touches the device or reaches the virtual surface
+    (as ``bench world`` counts it), after at least ``TOUCH_WINDOW_S`` of neither. The scene's first
+    object and passive face come from its scene file (as the demo builds them); device and finger
+    velocities are the ±3-tick central difference of the logged points (the device's encoder point,
+    the finger's pad)."""
+    from vishap.world.closed_loop import device_ready, ready_checks
+    from vishap.world.scene import load_scene
+
+    if log["finger_depth"] is None:
+        return []
+    sc = load_scene(scene)
+    obj, half = sc.objects[0], float(sc.passive_object.half_size_m)
+    t = log["t"]
+    dt = float(np.median(np.diff(t)))
+    p, pf = log["p_device"], log["p_finger"]
+    v, vf = _velocity(p, dt), _velocity(np.nan_to_num(pf), dt)
+    touching = log["in_contact"] | (np.nan_to_num(log["finger_depth"], nan=-np.inf) >= 0.0)
+    out, last_end = [], -math.inf
+    for a, b in _runs(touching):
+        if t[a] - last_end >= TOUCH_WINDOW_S:
+            args = (obj, p[: a + 1], v[: a + 1], pf[a], vf[: a + 1], half, dt)
+            out.append({"t_s": float(t[a]), "ready": bool(device_ready(*args)), "checks": ready_checks(*args)})
+        last_end = t[b - 1]
+    return out
 
 
 def _still(X_d: np.ndarray, dt: float, win_s: float = 0.1, tol_m: float = 1e-4) -> np.ndarray:
@@ -153,20 +222,35 @@ def analyse(log: dict) -> dict:
     lam = log["lambda_state"]
     lam_changes = np.flatnonzero(np.diff(lam) != 0) + 1
     ends = [t[b - 1] for _, b in _runs(ic)]
-    per_approach = []
-    for tc in touches:
+    per_approach, per_cycle = [], []
+    t_ch = t[lam_changes]
+
+    def free_after(end: float) -> float:
+        """The first free Λ after a contact that ended at ``end`` (the end of the log if none)."""
+        k = np.flatnonzero((t > end) & (lam == 0))
+        return float(t[k[0]]) if k.size else math.inf
+
+    for i, tc in enumerate(touches):
         prev = [e for e in ends if e < tc["t_s"]]
-        lo = -math.inf
-        if prev:
-            free_after = np.flatnonzero((t > prev[-1]) & (lam == 0))
-            lo = t[free_after[0]] if free_after.size else tc["t_s"]
+        lo = free_after(prev[-1]) if prev else -math.inf
+        lo = min(lo, tc["t_s"])
         hi = tc["t_s"] + 0.2
-        per_approach.append(int(np.count_nonzero((t[lam_changes] > lo) & (t[lam_changes] <= hi))))
+        per_approach.append(int(np.count_nonzero((t_ch > lo) & (t_ch <= hi))))
+        # the whole cycle: this approach, the press and its release, up to the first free Λ after
+        # the last contact before the next touch (a full cycle is free → surface → engaged → surface → free)
+        nxt = touches[i + 1]["t_s"] if i + 1 < len(touches) else math.inf
+        mine = [e for e in ends if tc["t_s"] <= e < nxt]
+        end = free_after(mine[-1]) if mine else math.inf
+        per_cycle.append(int(np.count_nonzero((t_ch > lo) & (t_ch <= end))))
     still = _still(log["X_d"], dt) & out_c & (log["guard"] != 2)
+    hold = still & _arrived(p, log["X_d"], speed, dt)
     moving = out_c & ~still & (speed > 0.02)
-    hold_segs, appr_segs, cont_segs = _runs(still), _runs(moving), _runs(log["in_contact"])
+    hold_segs, appr_segs, cont_segs = _runs(hold), _runs(moving), _runs(log["in_contact"])
+    target_segs = _runs(still)
     hold_all, n_hold = _segments_rms(F, hold_segs, fs, 0.0)
     hold_hi, _ = _segments_rms(F, hold_segs, fs, HI_HZ)
+    tgt_all, n_tgt = _segments_rms(F, target_segs, fs, 0.0)
+    tgt_hi, _ = _segments_rms(F, target_segs, fs, HI_HZ)
     appr_hi, n_appr = _segments_rms(F, appr_segs, fs, HI_HZ)
     cont_hi, n_cont = _segments_rms(F, cont_segs, fs, HI_HZ)
     return {
@@ -174,8 +258,9 @@ def analyse(log: dict) -> dict:
         "max_force_step_outside_contact_n": float(dF[both_out].max()) if both_out.any() else 0.0,
         "force_steps_over_0_5n_outside_contact": int(np.count_nonzero(dF[both_out] > 0.5)),
         "lambda_changes": int(len(lam_changes)),
-        "lambda_changes_per_approach": per_approach,
+        "lambda_changes_per_approach": per_approach, "lambda_changes_per_touch_cycle": per_cycle,
         "hold_ripple_n_rms": hold_all, "hold_ripple_above_30hz_n_rms": hold_hi, "hold_ticks": n_hold,
+        "still_target_ripple_n_rms": tgt_all, "still_target_ripple_above_30hz_n_rms": tgt_hi, "still_target_ticks": n_tgt,
         "approach_ripple_above_30hz_n_rms": appr_hi, "approach_ticks": n_appr,
         "contact_ripple_above_30hz_n_rms": cont_hi, "contact_ticks": n_cont,
         "device_speed_near_finger_max_m_s": float(speed[near].max()) if near.any() else 0.0,
@@ -223,9 +308,11 @@ def _demo_folders(args, out: Path) -> list[tuple[str, int, Path]]:
     except ValueError:
         raise ConfigError(f"expected comma-separated integers, got {args.seeds!r}", field="--seeds") from None
     scenes = [s.strip() for s in str(args.scenes).split(",") if s.strip()]
-    bad = [s for s in scenes if s not in SCENES]
+    if getattr(args, "readiness", False):
+        scenes, seeds = list(READINESS_SCENES), list(READINESS_SEEDS)
+    bad = [s for s in scenes if s not in ALL_SCENES]
     if bad or not scenes or not seeds:
-        raise ConfigError(f"expected scenes from {SCENES} and at least one seed, got {args.scenes!r} / {args.seeds!r}",
+        raise ConfigError(f"expected scenes from {ALL_SCENES} and at least one seed, got {args.scenes!r} / {args.seeds!r}",
                           field="--scenes")
     base = Path(args.logs) if args.logs else out / "demos"
     folders, todo = [], []
@@ -270,8 +357,18 @@ def _stiffness() -> dict:
     return {"max_stable_stiffness_n_m": min(per.values()), "max_stable_stiffness_by_mode_n_m": per}
 
 
+def _ready_by_scene(demos: list[dict]) -> dict:
+    """``{scene: {"ready": n, "touches": n}}`` over the demos' touches."""
+    out: dict = {}
+    for d in demos:
+        r = out.setdefault(d["scene"], {"ready": 0, "touches": 0})
+        r["ready"] += sum(tc["ready"] for tc in d["ready_touches"])
+        r["touches"] += len(d["ready_touches"])
+    return out
+
+
 def chart(demos: list[dict], alone: dict, out: Path) -> Path:
-    fig, axes = new_figure(2, 3, figsize=(17, 9))
+    fig, axes = new_figure(2, 4, figsize=(22, 9))
     ax = axes[0, 0]
     for kind, color in (("hold", "tab:blue"), ("approach", "tab:orange"), ("contact", "tab:green")):
         specs = [d["_spectra"][kind] for d in demos if d["_spectra"][kind] is not None]
@@ -328,6 +425,25 @@ def chart(demos: list[dict], alone: dict, out: Path) -> Path:
     ax.set_xticks([0, 1], ["gains before", "shipped gains"])
     ax.set_ylabel("µm rms above 30 Hz")
     ax.set_title("true tip vibration in a still hold", fontsize=9)
+    ready = _ready_by_scene(demos)
+    ax = axes[0, 3]
+    names = list(ready)
+    ax.bar(names, [ready[n]["touches"] for n in names], color="lightgrey", label="touches")
+    ax.bar(names, [ready[n]["ready"] for n in names], color="tab:green", label="device ready")
+    ax.set_ylabel("touches")
+    ax.set_title("device ready at the touch (device_ready; goal ≥ 9 of 10)", fontsize=9)
+    ax.legend(fontsize=8)
+    ax = axes[1, 3]
+    conds = ["still_normal", "still_tangential", "face", "inside"]
+    x = np.arange(len(conds))
+    for i, n in enumerate(names):
+        tcs = [tc for d in demos if d["scene"] == n for tc in d["ready_touches"]]
+        ax.bar(x + (i - (len(names) - 1) / 2) * 0.8 / max(len(names), 1),
+               [np.mean([tc["checks"][c] for tc in tcs]) if tcs else 0.0 for c in conds], 0.8 / max(len(names), 1), label=n)
+    ax.set_xticks(x, conds, fontsize=8)
+    ax.set_ylabel("share of touches meeting it")
+    ax.set_title("readiness conditions per scene", fontsize=9)
+    ax.legend(fontsize=8)
     return save_figure(fig, out / "servo_quality.png")
 
 
@@ -340,8 +456,9 @@ def run(args) -> dict:
     folders = _demo_folders(args, out)
     demos = []
     for scene, seed, d in folders:
-        rec = analyse(read_log(d))
-        rec.update(scene=scene, seed=seed, folder=str(d))
+        log = read_log(d)
+        rec = analyse(log)
+        rec.update(scene=scene, seed=seed, folder=str(d), ready_touches=ready_touches(log, scene))
         demos.append(rec)
     shipped, _ = load_gains()
     alone = {"shipped": servo_alone(shipped, args.seconds, int(args.substeps)),
@@ -355,20 +472,28 @@ def run(args) -> dict:
         "saturated_ticks_outside_contact": int(sum(d["saturated_ticks_outside_contact"] for d in demos)),
         "max_force_step_outside_contact_n": nan_max([d["max_force_step_outside_contact_n"] for d in demos]),
         "lambda_changes_per_approach_max": max((c for d in demos for c in d["lambda_changes_per_approach"]), default=0),
+        "lambda_changes_per_touch_cycle_max": max((c for d in demos for c in d["lambda_changes_per_touch_cycle"]), default=0),
         "hold_ripple_n_rms": nan_max([d["hold_ripple_n_rms"] for d in demos]),
         "hold_ripple_above_30hz_n_rms": nan_max([d["hold_ripple_above_30hz_n_rms"] for d in demos]),
+        "still_target_ripple_n_rms": nan_max([d["still_target_ripple_n_rms"] for d in demos]),
+        "still_target_ripple_above_30hz_n_rms": nan_max([d["still_target_ripple_above_30hz_n_rms"] for d in demos]),
         "approach_ripple_above_30hz_n_rms": nan_max([d["approach_ripple_above_30hz_n_rms"] for d in demos]),
         "device_speed_near_finger_max_m_s": nan_max([d["device_speed_near_finger_max_m_s"] for d in demos]),
         "touch_make_break_max": max((tc["makes_in_100ms"] for tc in touches), default=0),
         "touch_device_speed_mm_s_max": max((tc["device_normal_speed_mm_s"] for tc in touches), default=0.0),
         "tip_vibration_above_30hz_um_rms": alone["shipped"]["tip_vibration_above_30hz_um_rms"],
         **_stiffness(),
+        "demo_ready_touches": _ready_by_scene(demos),
+        "scenes": sorted({d["scene"] for d in demos}), "seeds": sorted({d["seed"] for d in demos}),
         "servo_alone": alone,
         "per_demo": [{k: v for k, v in d.items() if not k.startswith("_")} for d in demos],
         "elapsed_s": time.perf_counter() - t0,
         "chart": str(png),
         "machine": machine_info(),
         "notes": "maxima over demos; hold/approach ripple from the demo logs (F_cmd), tip vibration from the servo "
-                 "alone (true MuJoCo position: the logs carry the encoder's)",
+                 "alone (true MuJoCo position: the logs carry the encoder's); hold = target still and the device "
+                 f"within {HOLD_ARRIVED_M * 1e3:g} mm of it and slower than {HOLD_STILL_M_S * 1e3:g} mm/s over 100 ms "
+                 "(still_target_* = the target still only, the definition before); demo_ready_touches by "
+                 "vishap.world.closed_loop.device_ready",
     }
     return res

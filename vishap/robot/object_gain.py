@@ -17,7 +17,11 @@ positive inside; the law renders while the world announces an imminent or curren
   within ``ramp_s`` (``touch_in_s``): the blend then ends about when the finger lands, so the touch
   meets the law alone rather than the position servo's stiffness and damping fading out under it;
 * ``SURFACE`` (Λ = diag(1, 1, 0): the law gives the normal force, the servo keeps the lateral
-  position) → ``ENGAGED`` when ``depth > engage_m``;
+  position) → ``ENGAGED`` when ``depth > engage_m`` has held for ``engage_s``: a finger pushing the
+  device in holds it there for hundreds of ms, whereas the device's own bounce on the law's spring
+  (a 60 g tip on 800 N/m: half a period 27 ms) or a dip while it travels sideways at the surface
+  crosses ``engage_m`` for a few ticks only (3–16 ms in the wall demos) — and engaging on it releases
+  the wall's lateral axes (its ``contact_gain`` is 0) and flips Λ twice more as the device comes back;
 * ``ENGAGED`` (Λ = the mode's ``contact_gain``) → ``SURFACE`` only when ``depth < engage_m −
   hysteresis_m``;
 * ``SURFACE`` / ``ENGAGED`` → ``FREE`` when ``depth < −release_m`` or the law stops acting (no
@@ -85,16 +89,17 @@ class ObjectGainScheduler:
 
     Parameters (SI units): ``surface_on_m`` (depth that starts surface rendering), ``engage_m``
     (depth that applies the mode's lateral gains, the world's ``engage_m``), ``hysteresis_m``
-    (how far back above ``engage_m`` the device must come to leave ``ENGAGED``), ``release_m``
+    (how far back above ``engage_m`` the device must come to leave ``ENGAGED``), ``engage_s`` (how long
+    the device must stay deeper than ``engage_m`` before ``ENGAGED``), ``release_m``
     (height above the surface that ends contact rendering), ``dwell_s`` (least time between two
     changes), ``ramp_s`` (the blend of each change, ≥ 20 ms), ``force_ramp_s`` (the force scale's
     rise), ``dt`` (the servo period, for the blend's last tick).
     """
 
     def __init__(self, *, surface_on_m: float = 0.0001, engage_m: float = 0.0003, hysteresis_m: float = 0.0003,
-                 release_m: float = 0.001, dwell_s: float = 0.050, ramp_s: float = 0.025,
+                 engage_s: float = 0.030, release_m: float = 0.001, dwell_s: float = 0.050, ramp_s: float = 0.025,
                  force_ramp_s: float = 0.100, dt: float = 0.001):
-        vals = {"surface_on_m": surface_on_m, "engage_m": engage_m, "hysteresis_m": hysteresis_m,
+        vals = {"surface_on_m": surface_on_m, "engage_m": engage_m, "hysteresis_m": hysteresis_m, "engage_s": engage_s,
                 "release_m": release_m, "dwell_s": dwell_s, "ramp_s": ramp_s, "force_ramp_s": force_ramp_s, "dt": dt}
         for name, v in vals.items():
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
@@ -109,6 +114,7 @@ class ObjectGainScheduler:
             raise ConfigError(f"expected a servo period > 0, got {dt!r}", field="object_gain.dt")
         self.surface_on_m, self.engage_m, self.hysteresis_m = float(surface_on_m), float(engage_m), float(hysteresis_m)
         self.release_m, self.dwell_s, self.ramp_s = float(release_m), float(dwell_s), float(ramp_s)
+        self.engage_s = float(engage_s)
         self.force_ramp_s, self.dt = float(force_ramp_s), float(dt)
         self._contact_gain = (0.0, 0.0, 0.0)
         self._R = None
@@ -124,6 +130,7 @@ class ObjectGainScheduler:
         self._scale = 0.0
         self._scale_t0 = None  # when the force ramp started (None: idle)
         self._last_action = "idle"
+        self._deep_t0 = None  # since when the device has been deeper than engage_m (None: it is not)
         self.law_active = False
         self.changing = False
 
@@ -158,12 +165,18 @@ class ObjectGainScheduler:
         announced = (imminent or in_contact) and action in _TRACKING and self._contact_gain is not None
         st = self.state
         since = t - self._t_change
+        if d > self.engage_m:
+            if self._deep_t0 is None:
+                self._deep_t0 = t
+        else:
+            self._deep_t0 = None
         if not announced or d < -self.release_m:
             new = FREE
         elif st == FREE:
             new = SURFACE if d > self.surface_on_m or (touch_in_s <= self.ramp_s and d > -self.release_m) else FREE
         elif st == SURFACE:
-            new = ENGAGED if d > self.engage_m else SURFACE
+            pushed = self._deep_t0 is not None and t - self._deep_t0 >= self.engage_s - 0.5 * self.dt
+            new = ENGAGED if pushed else SURFACE
         else:
             new = SURFACE if d < self.engage_m - self.hysteresis_m else ENGAGED
         if new != st:
