@@ -8,7 +8,7 @@
   on the letterboxed frame if it scores ≥ 0.5; ``vishap.vision.learned.MEDIAPIPE_PALM_RULE``);
 * **video**: the photos in file order as one 30 fps video (the train split is made of consecutive
   frames of short clips, with a jump to another moment about every 11 frames), the detectors
-  interleaved frame by frame so they share the machine's load (their order turned every frame): ``learned`` (image mode),
+  interleaved frame by frame so they share the machine's load (in a new random order on each frame): ``learned`` (image mode),
   ``learned_video`` (MediaPipe's video mode: the landmark network on the region the last landmarks
   give, the palm network only when that loses the hand) and ``hybrid`` (window tracking between
   re-checks), plus the hybrid's re-check interval swept, and the "before" of the same run:
@@ -126,14 +126,13 @@ def _step(det, img, t, gt, row: int) -> dict:
             "radius": d.radius_px, "direction": d.direction, "ms": d.timings.get("total_ms", np.nan)}
 
 
-def _rotated(dets: dict, k: int) -> list:
-    """The detectors' (name, detector) pairs, their order turned by ``k``: interleaved frame by frame, the
+def _shuffled(dets: dict, rng: np.random.Generator) -> list:
+    """The detectors' (name, detector) pairs in a random order. Interleaved frame by frame, the
     detector that runs right after a network finds the caches cold (the hybrid on moving photos, two
-    runs with the order swapped: median 1.05–1.35 ms there, 0.70–0.86 ms elsewhere), so each takes
-    every place in turn."""
+    runs with the order swapped: median 1.05–1.35 ms there, 0.70–0.86 ms elsewhere); a fixed or
+    merely rotated order would give each detector the same predecessor on every frame."""
     items = list(dets.items())
-    k %= len(items)
-    return items[k:] + items[:k]
+    return [items[j] for j in rng.permutation(len(items))]
 
 
 def _label_offset(results: list[dict], mode: str = "learned+refine") -> dict:
@@ -253,9 +252,10 @@ def run(args: argparse.Namespace) -> dict:
 
     quiet = getattr(args, "quiet", False)
     photo = {k: [] for k in photo_dets}
-    for i, (path, gt, row) in enumerate(progress(items, desc="bench learned: photos", unit="photo", quiet=quiet)):
+    rng = np.random.default_rng(0)  # the detectors' order on each frame
+    for path, gt, row in progress(items, desc="bench learned: photos", unit="photo", quiet=quiet):
         img = _read(path)
-        for name, det in _rotated(photo_dets, i):
+        for name, det in _shuffled(photo_dets, rng):
             det.reset()
             photo[name].append(_step(det, img, 0.0, gt, row))
     photos = {k: _scores(v, fit_last) for k, v in photo.items()}
@@ -274,7 +274,7 @@ def run(args: argparse.Namespace) -> dict:
     video = {k: [] for k in video_dets}
     for i, (path, gt, row) in enumerate(progress(items, desc="bench learned: video", unit="frame", quiet=quiet)):
         img = _read(path)
-        for name, det in _rotated(video_dets, i):
+        for name, det in _shuffled(video_dets, rng):
             video[name].append(_step(det, img, i * dt, gt, row))
     videos = {k: _scores(v, fit_last) for k, v in video.items()}
 
@@ -291,7 +291,7 @@ def run(args: argparse.Namespace) -> dict:
         for det in mv_dets.values():
             det.reset()
         for k, (frame, gt_k) in enumerate(_moving_frames(_read(path), gt, args.moving_frames, seed=j)):
-            for name, det in _rotated(mv_dets, k):
+            for name, det in _shuffled(mv_dets, rng):
                 moving[name].append(_step(det, frame, k * dt, gt_k, row))
     movings = {k: _scores(v, fit_last) for k, v in moving.items() if v}
     tracked_ms = [r["ms"] for r in moving["hybrid"] if r["mode"] == "tracked"]
