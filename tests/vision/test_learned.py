@@ -218,9 +218,10 @@ def test_bench_scores_detectors_on_real_photos(tmp_path):
     args = argparse.Namespace(out=str(tmp_path / "out"), data=str(data), every=1, recheck="2",
                               moving_photos=1, moving_frames=8)
     rec = bench.run(args)
-    assert set(rec["photos"]) == {"learned", "hybrid", "learned_mediapipe_palm_rule"}
+    assert set(rec["photos"]) == {"learned", "hybrid", "hybrid_cap_end", "learned_mediapipe_palm_rule"}
     assert set(rec["video"]) == {"learned", "learned_video", "hybrid", "hybrid_recheck_2",
-                                 "learned_video_mediapipe_palm_rule", "hybrid_before"}
+                                 "learned_video_mediapipe_palm_rule", "hybrid_before", "hybrid_no_cut_check",
+                                 "hybrid_cap_end_no_cut_check"}
     for group in ("photos", "video", "moving_photo"):
         for s in rec[group].values():
             assert s["detection_rate"] == 1.0 and s["pck_30"] == 1.0 and s["ms_per_frame"] > 0

@@ -8,17 +8,26 @@
   on the letterboxed frame if it scores ≥ 0.5; ``vishap.vision.learned.MEDIAPIPE_PALM_RULE``);
 * **video**: the photos in file order as one 30 fps video (the train split is made of consecutive
   frames of short clips, with a jump to another moment about every 11 frames), the detectors
-  interleaved frame by frame so they share the machine's load: ``learned`` (image mode),
+  interleaved frame by frame so they share the machine's load (in a new random order on each frame): ``learned`` (image mode),
   ``learned_video`` (MediaPipe's video mode: the landmark network on the region the last landmarks
   give, the palm network only when that loses the hand) and ``hybrid`` (window tracking between
   re-checks), plus the hybrid's re-check interval swept, and the "before" of the same run:
   ``learned_video_mediapipe_palm_rule`` and ``hybrid_before`` (that palm rule, and the patch
-  follower with no limit on its run of frames);
+  follower with no limit on its run of frames); ``hybrid_no_cut_check`` (no scene-cut check) and
+  ``hybrid_cap_end_no_cut_check`` (neither that nor the annotation's tip point: ``tip_end_uv`` at the
+  cap's end, landmark 8 where no cap fit; ``hybrid_cap_end`` among the photos) show what each
+  of the hybrid's two latest changes buys;
 * **peer** (``--mediapipe-task FILE``, where the ``mediapipe`` package is importable, e.g. in a separate
   environment): MediaPipe's own HandLandmarker in image and video mode beside them;
 * **moving photo**: a few photos moved along a smooth path (a video whose every frame has a known
   tip): the per-frame time of ``learned_video`` against the hybrid in pure tracking mode, and how
   well the tracked tip follows the motion.
+
+Every score is also given on the *fit* split (photos 1…``--fit-last`` in file order, the only
+ones looked at while tuning) and on the *held-out* rest (``fit`` / ``held_out``), and
+``annotation_along_finger`` says where the annotation lies along the finger relative to the
+hybrid's cap, per split, for a fitted cap and for the landmarks' cap (on the fit split: the
+hybrid's ``tip_end_frac`` and ``landmark_tip_end_frac``).
 
 Writes ``learned.json`` and ``learned_speed_accuracy.png`` (ms per frame against PCK@20/30).
 """
@@ -43,6 +52,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", default=str(_DEFAULT_DATA),
                    help="folder with images/ and labels.csv (frame,u,v); default: the real train photos beside the repository")
     p.add_argument("--every", type=int, default=1, help="use every k-th photo (default 1: all)")
+    p.add_argument("--fit-last", type=int, default=600,
+                   help="photos 1..N (file order) are the fit split (tuned on), the rest held out (default 600)")
     p.add_argument("--recheck", default="3,5,10,20", help="hybrid re-check intervals to sweep on the video")
     p.add_argument("--moving-photos", type=int, default=5, help="photos turned into moving-image videos (default 5)")
     p.add_argument("--moving-frames", type=int, default=60, help="frames per moving-image video (default 60)")
@@ -51,7 +62,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "mode) as the peer, where the mediapipe package is importable (it is not a dependency)")
 
 
-def _load_labels(folder: Path, every: int) -> list[tuple[Path, np.ndarray | None]]:
+def _load_labels(folder: Path, every: int) -> list[tuple[Path, np.ndarray | None, int]]:
+    """(image path, annotated tip or None, 0-based row of labels.csv) of every ``every``-th row."""
     from vishap._core.errors import ConfigError
 
     path = folder / "labels.csv"
@@ -63,7 +75,7 @@ def _load_labels(folder: Path, every: int) -> list[tuple[Path, np.ndarray | None
             if not {"frame", "u", "v"} <= set(row):
                 raise ConfigError("expected columns frame,u,v", file=path, field=f"row {i + 2}")
             uv = None if not row["u"] or not row["v"] else np.array([float(row["u"]), float(row["v"])])
-            out.append((folder / "images" / row["frame"], uv))
+            out.append((folder / "images" / row["frame"], uv, i))
     return out[::max(1, every)]
 
 
@@ -76,8 +88,10 @@ def _read(path: Path) -> np.ndarray:
     return img
 
 
-def _scores(results: list[dict]) -> dict:
-    """PCK, detection rate, errors and time over per-frame results {found, tip, cap, gt, ms}."""
+def _scores(results: list[dict], fit_last: int | None = None) -> dict:
+    """PCK, detection rate, errors and time over per-frame results {found, tip, cap, gt, ms, row};
+    with ``fit_last``, also the PCK and detection rate of rows < ``fit_last`` (``fit``) and of the
+    rest (``held_out``)."""
     lab = [r for r in results if r["gt"] is not None]
     tip = np.array([np.hypot(*(r["tip"] - r["gt"])) if r["found"] else np.inf for r in lab])
     cap = np.array([np.hypot(*(r["cap"] - r["gt"])) if r["found"] else np.inf for r in lab])
@@ -96,24 +110,48 @@ def _scores(results: list[dict]) -> dict:
     for r in results:
         modes[r["mode"]] = modes.get(r["mode"], 0) + 1
     out["modes"] = modes
+    if fit_last is not None:
+        for split, part in (("fit", [r for r in results if r["row"] < fit_last]),
+                            ("held_out", [r for r in results if r["row"] >= fit_last])):
+            if any(r["gt"] is not None for r in part):
+                sc = _scores(part)
+                out[split] = {k: sc[k] for k in ("frames", "detection_rate", "pck_10", "pck_20", "pck_30",
+                                                 "median_error_px", "cap_pck_30")}
     return out
 
 
-def _step(det, img, t, gt) -> dict:
+def _step(det, img, t, gt, row: int) -> dict:
     d = det.process(img, t)
-    return {"found": d.found, "tip": d.tip_end_uv, "cap": d.cap_uv, "gt": gt, "mode": d.mode,
+    return {"found": d.found, "tip": d.tip_end_uv, "cap": d.cap_uv, "gt": gt, "mode": d.mode, "row": row,
             "radius": d.radius_px, "direction": d.direction, "ms": d.timings.get("total_ms", np.nan)}
 
 
-def _label_offset(results: list[dict]) -> dict:
-    """Where the annotation lies along the finger, relative to a fitted cap: ``(gt − cap)·(−direction)``
-    in cap radii (1: the fingertip's end; 0: the cap centre), over frames with a cap fit."""
+def _shuffled(dets: dict, rng: np.random.Generator) -> list:
+    """The detectors' (name, detector) pairs in a random order. Interleaved frame by frame, the
+    detector that runs right after a network finds the caches cold (the hybrid on moving photos, two
+    runs with the order swapped: median 1.05–1.35 ms there, 0.70–0.86 ms elsewhere); a fixed or
+    merely rotated order would give each detector the same predecessor on every frame."""
+    items = list(dets.items())
+    return [items[j] for j in rng.permutation(len(items))]
+
+
+def _label_offset(results: list[dict], mode: str = "learned+refine") -> dict:
+    """Where the annotation lies along the finger, relative to the hybrid's cap in frames of ``mode``
+    (``learned+refine``: a fitted cap; ``learned``: the landmarks' cap): ``(gt − cap)·(−direction)``
+    in cap radii (1: the fingertip's end; 0: the cap centre)."""
     off = [float((r["gt"] - r["cap"]) @ -r["direction"]) / r["radius"] for r in results
-           if r["mode"] == "learned+refine" and r["gt"] is not None and r["radius"] > 0]
+           if r["mode"] == mode and r["gt"] is not None and r["radius"] > 0]
     if not off:
         return {"frames": 0}
     return {"frames": len(off), "median_radii": float(np.median(off)),
             "quartiles_radii": [float(np.percentile(off, 25)), float(np.percentile(off, 75))]}
+
+
+def _label_offsets(results: list[dict], fit_last: int) -> dict:
+    """:func:`_label_offset` per split (fit: rows < ``fit_last``) and per cap (fitted, landmarks')."""
+    parts = {"fit": [r for r in results if r["row"] < fit_last], "held_out": [r for r in results if r["row"] >= fit_last]}
+    return {split: {"fitted_cap": _label_offset(part, "learned+refine"), "landmark_cap": _label_offset(part, "learned")}
+            for split, part in parts.items()}
 
 
 def _moving_frames(img: np.ndarray, gt: np.ndarray, n: int, seed: int):
@@ -189,7 +227,10 @@ def run(args: argparse.Namespace) -> dict:
         return {"available": False, "reason": L.INSTALL_HINT}
     out = Path(args.out)
     items = _load_labels(Path(args.data), args.every)
+    fit_last = int(getattr(args, "fit_last", 600))
     dt = 1 / 30
+    # the hybrid before its scene-cut check and the annotation's tip point (tip_end_uv at the cap's end)
+    no_cut, cap_end = dict(cut_ncc=None), dict(tip_end_frac=1.0, landmark_tip_end_frac=None)
 
     def make(kind: str, before: bool = False, **options):
         # before=True: MediaPipe's palm rule (best box ≥ 0.5, one zoom), and for the hybrid the patch
@@ -203,7 +244,7 @@ def run(args: argparse.Namespace) -> dict:
 
     # ---------------------------------------------------------------- photos
     peers = _mediapipe_peers(getattr(args, "mediapipe_task", None))
-    photo_dets = {"learned": make("image"), "hybrid": make("hybrid"),
+    photo_dets = {"learned": make("image"), "hybrid": make("hybrid"), "hybrid_cap_end": make("hybrid", **cap_end),
                   "learned_mediapipe_palm_rule": make("image", before=True)}
     if peers:
         photo_dets["mediapipe_image"] = peers["mediapipe_image"]
@@ -211,45 +252,48 @@ def run(args: argparse.Namespace) -> dict:
 
     quiet = getattr(args, "quiet", False)
     photo = {k: [] for k in photo_dets}
-    for i, (path, gt) in enumerate(progress(items, desc="bench learned: photos", unit="photo", quiet=quiet)):
+    rng = np.random.default_rng(0)  # the detectors' order on each frame
+    for path, gt, row in progress(items, desc="bench learned: photos", unit="photo", quiet=quiet):
         img = _read(path)
-        for name, det in photo_dets.items():
+        for name, det in _shuffled(photo_dets, rng):
             det.reset()
-            photo[name].append(_step(det, img, 0.0, gt))
-    photos = {k: _scores(v) for k, v in photo.items()}
+            photo[name].append(_step(det, img, 0.0, gt, row))
+    photos = {k: _scores(v, fit_last) for k, v in photo.items()}
 
     # ---------------------------------------------------------------- video: the photos in order
     recheck = [int(x) for x in str(args.recheck).split(",") if x]
     video_dets = {"learned": make("image"), "learned_video": make("video"), "hybrid": make("hybrid"),
                   "learned_video_mediapipe_palm_rule": make("video", before=True),
-                  "hybrid_before": make("hybrid", before=True)}
+                  "hybrid_before": make("hybrid", before=True), "hybrid_no_cut_check": make("hybrid", **no_cut),
+                  "hybrid_cap_end_no_cut_check": make("hybrid", **no_cut, **cap_end)}
     if peers:
         video_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
     for n in recheck:
         if n != HybridConfig().recheck_every:
             video_dets[f"hybrid_recheck_{n}"] = make("hybrid", recheck_every=n)
     video = {k: [] for k in video_dets}
-    for i, (path, gt) in enumerate(progress(items, desc="bench learned: video", unit="frame", quiet=quiet)):
+    for i, (path, gt, row) in enumerate(progress(items, desc="bench learned: video", unit="frame", quiet=quiet)):
         img = _read(path)
-        for name, det in video_dets.items():
-            video[name].append(_step(det, img, i * dt, gt))
-    videos = {k: _scores(v) for k, v in video.items()}
+        for name, det in _shuffled(video_dets, rng):
+            video[name].append(_step(det, img, i * dt, gt, row))
+    videos = {k: _scores(v, fit_last) for k, v in video.items()}
 
     # ---------------------------------------------------------------- moving photos
-    labelled = [(p, g) for p, g in items if g is not None]
+    labelled = [(p, g, row) for p, g, row in items if g is not None]
     picks = [labelled[int(j)] for j in np.linspace(0, len(labelled) - 1, max(0, args.moving_photos), dtype=int)] \
         if labelled and args.moving_photos > 0 else []
-    mv_dets = {"learned_video": make("video"), "hybrid": make("hybrid")}
+    mv_dets = {"learned_video": make("video"), "hybrid": make("hybrid"),
+               "hybrid_cap_end_no_cut_check": make("hybrid", **no_cut, **cap_end)}
     if peers:
         mv_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
     moving = {k: [] for k in mv_dets}
-    for j, (path, gt) in enumerate(progress(picks, desc="bench learned: moving photos", unit="photo", quiet=quiet)):
+    for j, (path, gt, row) in enumerate(progress(picks, desc="bench learned: moving photos", unit="photo", quiet=quiet)):
         for det in mv_dets.values():
             det.reset()
         for k, (frame, gt_k) in enumerate(_moving_frames(_read(path), gt, args.moving_frames, seed=j)):
-            for name, det in mv_dets.items():
-                moving[name].append(_step(det, frame, k * dt, gt_k))
-    movings = {k: _scores(v) for k, v in moving.items() if v}
+            for name, det in _shuffled(mv_dets, rng):
+                moving[name].append(_step(det, frame, k * dt, gt_k, row))
+    movings = {k: _scores(v, fit_last) for k, v in moving.items() if v}
     tracked_ms = [r["ms"] for r in moving["hybrid"] if r["mode"] == "tracked"]
     if movings:
         movings["hybrid"]["tracked_ms_per_frame"] = float(np.median(tracked_ms)) if tracked_ms else None
@@ -260,7 +304,8 @@ def run(args: argparse.Namespace) -> dict:
     record = {
         "data": str(args.data),
         "photos": photos,
-        "annotation_along_finger": _label_offset(photo["hybrid"]),
+        "fit_last": fit_last,
+        "annotation_along_finger": _label_offsets(photo["hybrid"], fit_last),
         "video": videos,
         "moving_photo": movings,
         "hybrid_over_learned_video_time": {
@@ -274,6 +319,8 @@ def run(args: argparse.Namespace) -> dict:
             "video_mean": ratio(videos, "hybrid", "mediapipe_video", "ms_per_frame_mean"),
             "moving_photo_median": ratio(movings, "hybrid", "mediapipe_video", "ms_per_frame"),
             "moving_photo_mean": ratio(movings, "hybrid", "mediapipe_video", "ms_per_frame_mean"),
+            "moving_photo_mean_before": ratio(movings, "hybrid_cap_end_no_cut_check", "mediapipe_video",
+                                              "ms_per_frame_mean"),
         } if peers else None,
         "hybrid_over_learned_time": {
             "video_mean": ratio(videos, "hybrid", "learned", "ms_per_frame_mean"),
@@ -315,7 +362,7 @@ def _chart(rec: dict, path: Path) -> None:
 def _colour(name: str) -> str:
     if name.startswith("hybrid_recheck"):
         return "tab:orange"
-    if name.endswith("_palm_rule") or name.endswith("_before"):
+    if name.endswith(("_palm_rule", "_before", "_cap_end", "_no_cut_check")):
         return "tab:gray"
     return {"learned": "tab:blue", "learned_video": "tab:purple", "hybrid": "tab:red",
             "mediapipe_image": "tab:green", "mediapipe_video": "tab:olive"}.get(name, "grey")

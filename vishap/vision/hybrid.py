@@ -31,9 +31,23 @@ skin mask that holds and a start. The hybrid gives each the part it is good at:
    above ``min_ncc``, the patch's run used up) is a miss; ``max_misses`` misses in a row hand
    the frame back to the learned model.
 
+A **scene cut** (a frame unrelated to the last: another clip, a new moment of a video cut
+together) is seen before the window is looked at: a 40×30 thumbnail of the frame that correlates
+less than ``cut_ncc`` with the last frame's sends the frame straight to the learned model, whose
+followed hand region is then verified by its presence score (the palm detector runs when it
+fails). Otherwise a window that still holds skin within the gate after a cut keeps a stale track
+until the next re-check.
+
 On independent photos (``reset()`` before each) every frame is a *find* + *refine*.
-``tip_end_uv`` is the fitted cap's outermost point along the finger (cap centre − radius ×
-direction into the finger), or the index-tip landmark when no fit agreed.
+
+``tip_end_uv`` is the point annotators mark as the fingertip, placed along the finger from the cap
+centre: ``cap − k·radius·direction`` (direction into the finger), with ``k`` =
+``tip_end_frac`` for a fitted cap and ``landmark_tip_end_frac`` for the cap the landmarks give
+(``k`` = 1 is the cap's outermost point; ``landmark_tip_end_frac=None`` reports landmark 8). On the real
+train photos (TI1K, fit split 1–600 only) the annotation lies a median 0.17 radii *behind* the
+fitted cap centre (the pad, not the end; 455 photos) and 0.53 radii out from the landmark cap
+centre (144 photos where the cap fit failed): the defaults. ``cap_uv`` (what stereo triangulates)
+does not depend on them.
 """
 from __future__ import annotations
 
@@ -74,6 +88,15 @@ class HybridConfig:
     # limit below, chosen on photos 1–600)
     min_ncc: float = 0.95
     max_template_run: int = 3      # patch-followed frames in a row before the learned model looks again
+    # a frame whose thumbnail correlates less than this with the last frame's is a scene cut: the learned
+    # model looks at once (None: off). Photos 1–600 in file order, 599 consecutive pairs: 503 at ≥ 0.9,
+    # 70 below 0.4 and two at 0.41 and 0.46 (jumps to an unrelated moment or clip), 24 at 0.55–0.9 (camera
+    # swings, which the window follows); 20 fit photos moved ≤ 4 px per frame (1180 pairs): all ≥ 0.89
+    cut_ncc: float | None = 0.5
+    # where tip_end_uv lies, in cap radii out from the cap centre along the finger (1: the cap's end),
+    # for a fitted cap and for the landmarks' cap (None: landmark 8); the annotations' medians on photos 1–600
+    tip_end_frac: float = -0.17
+    landmark_tip_end_frac: float | None = 0.53
     # a hand-held camera swings the whole image: more acceleration noise than a still rig's default
     tracker: TrackerConfig = TrackerConfig(q_px=2e5, r_px=1.0)
 
@@ -82,6 +105,8 @@ class HybridConfig:
             raise ConfigError(f"skin must be 'local' or 'model', got {self.skin!r}", field="skin")
         if int(self.recheck_every) < 1 or int(self.max_misses) < 0:
             raise ConfigError("recheck_every must be ≥ 1 and max_misses ≥ 0", field="recheck_every")
+        if self.cut_ncc is not None and not -1.0 <= float(self.cut_ncc) <= 1.0:
+            raise ConfigError(f"cut_ncc must lie in [-1, 1] or be None, got {self.cut_ncc}", field="cut_ncc")
 
 
 class LocalSkin:
@@ -167,15 +192,26 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / n if n > 1e-9 else np.array([0.0, 1.0])
 
 
+def _thumbnail(image: np.ndarray) -> np.ndarray:
+    """Zero-mean, unit-norm 40×30 grey thumbnail: a bilinear 80×60 (which reads only the 2×2 pixels
+    around each sample), then 2×2 area means, ~0.02 ms at 640×480 (a full area mean costs 0.2 ms, as
+    much as a followed frame). Grey: the colours of one scene stay alike across its moments and would
+    make a jump look like a continuation."""
+    small = cv2.resize(image, (80, 60), interpolation=cv2.INTER_LINEAR)
+    t = cv2.resize(cv2.cvtColor(small, cv2.COLOR_BGR2GRAY), (40, 30), interpolation=cv2.INTER_AREA).astype(np.float32)
+    t -= t.mean()
+    n = float(np.linalg.norm(t))
+    return t / n if n > 1e-6 else t
+
+
 @dataclass
 class _Fit:
     cap_uv: np.ndarray
     radius: float
     direction: np.ndarray
 
-    @property
-    def tip_end_uv(self) -> np.ndarray:
-        return self.cap_uv - self.radius * self.direction
+    def tip_end_uv(self, frac: float) -> np.ndarray:
+        return self.cap_uv - frac * self.radius * self.direction
 
 
 class HybridDetector:
@@ -203,6 +239,16 @@ class HybridDetector:
         self._have_colour = False
         self._template: np.ndarray | None = None
         self._template_run = 0
+        self._tip_frac = self.config.tip_end_frac  # tip_end_frac of the cap the track follows
+        self._thumb: np.ndarray | None = None
+
+    def _scene_cut(self, image: np.ndarray) -> bool:
+        """Is this frame unrelated to the last one (see ``HybridConfig.cut_ncc``)? Keeps its thumbnail."""
+        if self.config.cut_ncc is None:
+            return False
+        thumb, last = _thumbnail(image), self._thumb
+        self._thumb = thumb
+        return last is not None and (last.shape != thumb.shape or float(np.vdot(last, thumb)) < self.config.cut_ncc)
 
     # ------------------------------------------------------------------ the two halves
     def _skin_mask(self, win: np.ndarray) -> np.ndarray:
@@ -287,9 +333,14 @@ class HybridDetector:
         fit = self._fit(image, cap, r, d) if (self._have_colour or self._skin_model is not None) else None
         timings["refine_ms"] = 1e3 * (time.perf_counter() - t0)
         if fit is not None:
-            meas, tip_end, radius, direction, mode = fit.cap_uv, fit.tip_end_uv, fit.radius, fit.direction, "learned+refine"
+            self._tip_frac, mode = self.config.tip_end_frac, "learned+refine"
+            tip_end = fit.tip_end_uv(self._tip_frac)
         else:
-            meas, tip_end, radius, direction, mode = cap, hand.uvz[INDEX_TIP, :2].copy(), r, d, "learned"
+            fit, mode, frac = _Fit(cap, r, d), "learned", self.config.landmark_tip_end_frac
+            # None: landmark 8 itself (for a finger turned toward the camera not quite the cap's image end)
+            self._tip_frac = 1.0 if frac is None else frac
+            tip_end = hand.uvz[INDEX_TIP, :2].copy() if frac is None else fit.tip_end_uv(frac)
+        meas, radius, direction = fit.cap_uv, fit.radius, fit.direction
         self.tracker.restart(t, meas)
         self._cap_at_find = meas.copy()
         self._template = self._patch(image, meas, radius) if self.config.template else None
@@ -303,11 +354,11 @@ class HybridDetector:
         pred = self.tracker.predict(t)
         sig = float(np.sqrt(max(self.tracker.kf.P[0, 0], self.tracker.kf.P[1, 1])))
         fit = self._fit(image, pred, self._radius, self._direction, extra_px=2.0 * sig)
-        mode = "tracked"
+        mode, frac = "tracked", self.config.tip_end_frac
         if fit is None and self._template is not None and self._template_run < self.config.max_template_run:
             uv = self._match(image, pred, extra_px=2.0 * sig)
-            if uv is not None:
-                fit, mode = _Fit(uv, self._radius, self._direction.copy()), "tracked_template"
+            if uv is not None:  # the patch is centred on the find's cap: that cap's tip_end_frac
+                fit, mode, frac = _Fit(uv, self._radius, self._direction.copy()), "tracked_template", self._tip_frac
         timings["window_ms"] = 1e3 * (time.perf_counter() - t0)
         self._since_find += 1
         if fit is None:
@@ -316,16 +367,17 @@ class HybridDetector:
             if self._misses > self.config.max_misses:
                 return None
             uv = self.tracker.kf.position.copy()
-            return MonoDetection(t, True, tip_end_uv=uv - self._radius * self._direction, cap_uv=uv,
+            return MonoDetection(t, True, tip_end_uv=uv - self._tip_frac * self._radius * self._direction, cap_uv=uv,
                                  radius_px=self._radius, direction=self._direction.copy(),
                                  confidence=self.tracker.confidence, mode="predicted")
         self._misses = 0
         self._template_run = self._template_run + 1 if mode == "tracked_template" else 0
+        self._tip_frac = frac
         self.tracker.update(t, fit.cap_uv)
         # the radius and direction drift slowly: smooth them so one noisy fit cannot derail the next window
         self._radius = 0.7 * self._radius + 0.3 * fit.radius
         self._direction = _unit(0.7 * self._direction + 0.3 * fit.direction)
-        return MonoDetection(t, True, tip_end_uv=fit.tip_end_uv, cap_uv=fit.cap_uv.copy(), radius_px=fit.radius,
+        return MonoDetection(t, True, tip_end_uv=fit.tip_end_uv(frac), cap_uv=fit.cap_uv.copy(), radius_px=fit.radius,
                              direction=fit.direction, confidence=1.0, mode=mode)
 
     # ------------------------------------------------------------------ MonoDetector
@@ -333,7 +385,8 @@ class HybridDetector:
         t0 = time.perf_counter()
         timings: dict = {}
         det = None
-        if self.tracker.tracking and self._radius > 0 and self._since_find < self.config.recheck_every:
+        cut = self._scene_cut(image)
+        if not cut and self.tracker.tracking and self._radius > 0 and self._since_find < self.config.recheck_every:
             det = self._follow(image, t, timings)
         if det is None:
             det = self._find(image, t, timings)
