@@ -113,7 +113,11 @@ def test_ready_touches_use_the_world_bench_conditions(tmp_path):
     assert rt[0]["ready"] and all(rt[0]["checks"].values())
     assert not rt[1]["ready"] and rt[1]["checks"] == {"still_normal": False, "still_tangential": True, "face": True,
                                                       "inside": True}
-    assert ready_touches(read_log(_write(tmp_path, servo)), "button")[0]["checks"]["inside"] is False  # 18 mm key
+    # the finger landing 8 mm off the face's centre: 12 mm inside the wall's 40 mm plate, 7 mm inside
+    # the button's 30 mm keycap (each scene's passive face from its scene file)
+    off = dict(servo, finger_point=pf + 0.008 * np.asarray(obj.R, float)[:, 0])
+    assert ready_touches(read_log(_write(tmp_path, off)), "wall")[0]["checks"]["inside"] is True
+    assert ready_touches(read_log(_write(tmp_path, off)), "button")[0]["checks"]["inside"] is False
 
 
 def test_the_readiness_option_reads_wall_button_and_fabric_over_seeds_0_to_9(tmp_path):
