@@ -25,6 +25,7 @@ which is what stereo triangulates.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -185,22 +186,29 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
         tie = -ext
     order = [int(np.argmin(tie - 1e9 * score))] if max_tips == 1 else np.lexsort((tie, -score))
     alive = np.ones(xs.size, bool)
-    tips = []
+    chosen = []
     for k in order:
         if not alive[k]:
             continue
-        p = np.array([xs[k], ys[k]], dtype=np.float64)
-        d = (off[ring[k]].astype(np.float64)).mean(axis=0)
-        nd = np.hypot(*d)
-        d = d / nd if nd > 0 else np.array([0.0, 1.0])
-        tip = Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r), score=float(score[k]),
-                        n_candidates=int(xs.size), extremity_px=float(ext[k]))
-        if config.refine:
-            _refine(mask, tip, r2)
-        tips.append(tip)
-        if len(tips) >= max_tips:
+        chosen.append(int(k))
+        if len(chosen) >= max_tips:
             break
         alive &= (xs - xs[k]) ** 2 + (ys - ys[k]) ** 2 > (2 * r2) ** 2
+    sel = np.array(chosen, dtype=np.intp)
+    # direction into the finger: the mean offset of each tip's skin ring pixels (sums of small
+    # integers: exact in any order)
+    ring_k = ring[sel]
+    d_all = (ring_k.astype(np.float64) @ off.astype(np.float64)) / ring_k.sum(axis=1)[:, None]
+    tips = []
+    for j, k in enumerate(chosen):
+        p = np.array([xs[k], ys[k]], dtype=np.float64)
+        d = d_all[j]
+        nd = np.hypot(*d)
+        d = d / nd if nd > 0 else np.array([0.0, 1.0])
+        tips.append(Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r), score=float(score[k]),
+                              n_candidates=int(xs.size), extremity_px=float(ext[k])))
+    if config.refine:
+        _refine_all(mask, tips, r2)
     return tips
 
 
@@ -236,53 +244,120 @@ def fit_circle(pts: np.ndarray) -> tuple[np.ndarray, float] | None:
     return c + m, float(np.sqrt(rad2))
 
 
-def _edge_points(win: np.ndarray) -> np.ndarray:
-    """Midpoints between horizontally/vertically adjacent pixels of different value (x, y)."""
-    b = win > 0
-    hy, hx = np.nonzero(b[:, 1:] != b[:, :-1])
-    vy, vx = np.nonzero(b[1:, :] != b[:-1, :])
-    return np.concatenate([np.column_stack([hx + 0.5, hy]), np.column_stack([vx, vy + 0.5])]).astype(np.float64)
+@lru_cache(maxsize=64)
+def _edge_grid(half: int) -> tuple[np.ndarray, np.ndarray]:
+    """Where the mask's edge crossings of a (2·half+1)² window centred on a pixel can lie, relative
+    to that pixel: the midpoints between horizontally, then vertically adjacent pixels (each in
+    row-major order), as ``(N, 2)`` offsets, and the moments ``[1, u, v, u², uv, v², u³, u²v, uv², v³]``
+    of each ``(N, 10)``. Every offset is a multiple of 0.5, so weighted sums of the moments over any
+    set of these points are exact (the circle fit's sums do not depend on the order of the points)."""
+    a = np.arange(-half, half + 1, dtype=np.float64)
+    hv, hu = np.meshgrid(a, a[:-1] + 0.5, indexing="ij")     # (W, W−1): between columns
+    vv, vu = np.meshgrid(a[:-1] + 0.5, a, indexing="ij")     # (W−1, W): between rows
+    u = np.concatenate([hu.ravel(), vu.ravel()])
+    v = np.concatenate([hv.ravel(), vv.ravel()])
+    mom = np.column_stack([np.ones_like(u), u, v, u * u, u * v, v * v, u ** 3, u * u * v, u * v * v, v ** 3])
+    return np.column_stack([u, v]), mom
 
 
-def _refine(mask: np.ndarray, tip: Fingertip, r2: int) -> None:
+def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
+    """Sub-pixel cap circles of the chosen candidates, all at once. Per candidate: the mask's edge
+    crossings in a window of half-side ``r2 + 4`` around its pixel, the finger's direction
+    (:func:`_finger_directions`), then twice a circle through the crossings in front of the
+    current centre (within ``r2 + 2.5`` of it). Each round fits every candidate from one product of
+    the selected crossings with their moments (:func:`_kasa`). A candidate whose fit fails, moves
+    its centre over ``r2 + 1`` px or grows over ``2·r2 + 2`` px keeps its pixel."""
     h, w = mask.shape
     half = r2 + 4
-    x0, y0 = int(max(0, tip.uv_pixel[0] - half)), int(max(0, tip.uv_pixel[1] - half))
-    x1, y1 = int(min(w, tip.uv_pixel[0] + half + 1)), int(min(h, tip.uv_pixel[1] + half + 1))
-    pts = _edge_points(mask[y0:y1, x0:x1]) + (x0, y0)
-    if len(pts) < 5:
-        return
-    c = tip.uv_pixel.astype(np.float64)
-    d = _finger_direction(mask, c, r2 + 2.0, tip.direction)
+    grid, mom = _edge_grid(half)
+    K = len(tips)
+    P = np.array([t.uv_pixel for t in tips], dtype=np.float64)          # (K, 2), whole pixels
+    pi = P.astype(np.intp)
+    a = np.arange(-half, half + 1)
+    X, Y = pi[:, :1] + a, pi[:, 1:] + a                                  # (K, W) image columns / rows
+    inside = all(half <= x < w - half and half <= y < h - half for x, y in pi.tolist())
+    if inside:
+        win = mask[Y[:, :, None], X[:, None, :]] > 0                     # (K, W, W)
+    else:  # a window cut by the mask's border: crossings only between two pixels of the mask
+        win = mask[np.clip(Y, 0, h - 1)[:, :, None], np.clip(X, 0, w - 1)[:, None, :]] > 0
+        ok = ((Y >= 0) & (Y < h))[:, :, None] & ((X >= 0) & (X < w))[:, None, :]
+    eh = win[:, :, 1:] != win[:, :, :-1]
+    ev = win[:, 1:, :] != win[:, :-1, :]
+    if not inside:
+        eh &= ok[:, :, 1:] & ok[:, :, :-1]
+        ev &= ok[:, 1:, :] & ok[:, :-1, :]
+    kk, nn = np.nonzero(np.concatenate([eh.reshape(K, -1), ev.reshape(K, -1)], axis=1))
+    g, m = grid[nn], mom[nn]                                             # the crossings, by candidate
+    D = _finger_directions(mask, P, r2 + 2.0, [t.direction for t in tips], inside=inside)
+    Dk = D[kk]
+    split = (kk == np.arange(K)[:, None]).astype(np.float64) if K > 1 else None
+    C = np.zeros((K, 2))                                                 # centres, relative to the pixels
+    alive = [True] * K
+    radius = [0.0] * K
+    reach2 = (r2 + 2.5) ** 2
     for _ in range(2):
-        rel = pts - c
-        dist = np.hypot(rel[:, 0], rel[:, 1])
-        sel = (rel @ d <= 0.0) & (dist <= r2 + 2.5)  # the cap: in front of the centre
-        fit = fit_circle(pts[sel])
-        if fit is None:
-            return
-        c_new, rad = fit
-        if np.hypot(*(c_new - tip.uv_pixel)) > r2 + 1 or rad > 2 * r2 + 2:
-            return
-        c = c_new
-    tip.uv = c
-    tip.direction = d
-    tip.cap_radius_px = rad
+        rel = g - C[kk] if K > 1 else g - C[0]
+        sel = (np.einsum("ij,ij->i", rel, Dk) <= 0.0) & (np.einsum("ij,ij->i", rel, rel) <= reach2)  # the cap
+        S = (split * sel) @ m if K > 1 else (sel @ m)[None]
+        for k, sums in enumerate(S.tolist()):
+            if not alive[k]:
+                continue
+            fit = _kasa(*sums)
+            if fit is None or np.hypot(fit[0], fit[1]) > r2 + 1 or fit[2] > 2 * r2 + 2:
+                alive[k] = False
+                continue
+            C[k] = fit[:2]
+            radius[k] = fit[2]
+    for k, tip in enumerate(tips):
+        if alive[k]:
+            tip.uv = P[k] + C[k]
+            tip.direction = D[k]
+            tip.cap_radius_px = radius[k]
+
+
+def _kasa(n, su, sv, suu, suv, svv, suuu, suuv, suvv, svvv):
+    """The Kåsa circle ``(cx, cy, radius)`` of points given by their sums (as :func:`fit_circle`: on
+    the points centred at their mean; None with fewer than 5 points, an ill-conditioned system or no
+    positive radius). Plain floats: a handful of candidates is faster so than as arrays."""
+    if n < 5:
+        return None
+    mx, my = su / n, sv / n
+    cuu = suu - su * mx                                 # centred second moments
+    cuv = suv - su * my
+    cvv = svv - sv * my
+    det = cuu * cvv - cuv * cuv
+    if not det > 1e-12 * max(cuu * cvv, 1e-300):
+        return None
+    # Σ u'(u'² + v'²) and Σ v'(u'² + v'²) of the centred points u' = u − mx, v' = v − my
+    bu = (suuu - 3 * mx * suu + 2 * n * mx ** 3) + (suvv - 2 * my * suv - mx * svv + 2 * n * mx * my * my)
+    bv = (svvv - 3 * my * svv + 2 * n * my ** 3) + (suuv - 2 * mx * suv - my * suu + 2 * n * mx * mx * my)
+    cx = (cvv * bu - cuv * bv) / det / 2
+    cy = (cuu * bv - cuv * bu) / det / 2
+    rad2 = (cuu + cvv) / n + cx * cx + cy * cy
+    if not (math.isfinite(rad2) and rad2 > 0):
+        return None
+    return cx + mx, cy + my, math.sqrt(rad2)
 
 
 _ANGLES = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
 _UNIT = np.column_stack([np.cos(_ANGLES), np.sin(_ANGLES)])
 
 
-def _finger_direction(mask: np.ndarray, c: np.ndarray, rho: float, fallback: np.ndarray) -> np.ndarray:
-    """Unit vector from ``c`` into the finger: mean direction of the skin samples on a circle."""
+def _finger_directions(mask: np.ndarray, C: np.ndarray, rho: float, fallback, *, inside: bool = False) -> np.ndarray:
+    """Unit vectors from the points ``C`` (K, 2) into the finger: the mean direction of the skin
+    samples on a circle of radius ``rho`` around each (``fallback[k]`` where none is skin);
+    ``inside``: the caller knows every circle lies within the mask."""
     h, w = mask.shape
-    q = np.rint(c + rho * _UNIT).astype(np.intp)
-    ok = (q[:, 0] >= 0) & (q[:, 0] < w) & (q[:, 1] >= 0) & (q[:, 1] < h)
-    skin = np.zeros(len(q), bool)
-    skin[ok] = mask[q[ok, 1], q[ok, 0]] > 0
-    if not skin.any():
-        return fallback
-    d = _UNIT[skin].sum(axis=0)
-    n = np.hypot(*d)
-    return d / n if n > 0 else fallback
+    q = np.rint(C[:, None, :] + rho * _UNIT).astype(np.intp)            # (K, 64, 2)
+    qx, qy = q[..., 0], q[..., 1]
+    if inside:
+        skin = mask[qy, qx] > 0
+    else:
+        ok = (qx >= 0) & (qx < w) & (qy >= 0) & (qy < h)
+        skin = np.zeros(ok.shape, bool)
+        skin[ok] = mask[qy[ok], qx[ok]] > 0
+    D = skin.astype(np.float64) @ _UNIT
+    for k, (dx, dy) in enumerate(D.tolist()):
+        n = math.hypot(dx, dy)
+        D[k] = (dx / n, dy / n) if n > 0 else fallback[k]
+    return D
