@@ -83,6 +83,11 @@ def _disk(r: int) -> np.ndarray:
     return ((xx * xx + yy * yy) <= r * r + 1e-9).astype(np.uint8)
 
 
+@lru_cache(maxsize=64)
+def _disk_area(r: int) -> int:
+    return int(_disk(r).sum())
+
+
 def detect_fingertip(mask: np.ndarray, r: float, config: FingertipConfig = FingertipConfig(),
                      *, prior_uv=None) -> Fingertip:
     """Find the fingertip in a binary skin ``mask`` (uint8, nonzero = skin) for radius ``r`` pixels."""
@@ -101,21 +106,27 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
     ri = max(1, int(round(r)))
     r2 = max(ri + 1, int(round(r + config.delta_r_frac * r)))
     disk = _disk(ri)
-    area = int(disk.sum())
+    area = _disk_area(ri)
     bx, by, bw, bh = cv2.boundingRect(mask)
     if bw == 0:
         return []
+    x0 = y0 = 0
     if bw * bh < mask.size // 2:  # work on the mask's bounding box (plus a margin) only
         x0, y0 = max(0, bx - r2), max(0, by - r2)
         x1, y1 = min(mask.shape[1], bx + bw + r2), min(mask.shape[0], by + bh + r2)
         if (x0, y0) != (0, 0) or (x1, y1) != mask.shape[::-1]:
-            prior = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64) - (x0, y0)
-            tips = detect_fingertips(np.ascontiguousarray(mask[y0:y1, x0:x1]), r, config, prior_uv=prior,
-                                     max_tips=max_tips)
-            for tip in tips:
-                tip.uv = tip.uv + (x0, y0)
-                tip.uv_pixel = tip.uv_pixel + (x0, y0)
-            return tips
+            mask = np.ascontiguousarray(mask[y0:y1, x0:x1])
+            prior_uv = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64) - (x0, y0)
+    tips = _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area)
+    if x0 or y0:
+        for tip in tips:
+            tip.uv = tip.uv + (x0, y0)
+            tip.uv_pixel = tip.uv_pixel + (x0, y0)
+    return tips
+
+
+def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fingertip]:
+    """:func:`detect_fingertips` on a mask cropped to its skin (plus ``r2``), in its coordinates."""
     h, w = mask.shape
     if h < 2 * r2 + 1 or w < 2 * r2 + 1:
         return []
@@ -145,9 +156,10 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
     # steps 6–9 on the square ring
     off = square_ring_offsets(r2)
     n_half = 4 * r2
+    flat, off_flat = mask.ravel(), off[:, 1] * w + off[:, 0]  # candidates lie r2 inside the mask
 
     def ring_test(xs, ys):
-        ring = mask[ys[:, None] + off[None, :, 1], xs[:, None] + off[None, :, 0]] > 0  # (M, 8 r2)
+        ring = flat[(ys * w + xs)[:, None] + off_flat] > 0  # (M, 8 r2)
         s_square = ring.sum(axis=1)
         n_diag = (ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
         keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2) \
