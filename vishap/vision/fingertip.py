@@ -285,12 +285,17 @@ def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
     K = len(tips)
     P = np.array([t.uv_pixel for t in tips], dtype=np.float64)          # (K, 2), whole pixels
     pi = P.astype(np.intp)
-    a = np.arange(-half, half + 1)
-    X, Y = pi[:, :1] + a, pi[:, 1:] + a                                  # (K, W) image columns / rows
-    inside = all(half <= x < w - half and half <= y < h - half for x, y in pi.tolist())
-    if inside:
-        win = mask[Y[:, :, None], X[:, None, :]] > 0                     # (K, W, W)
+    corners = pi.tolist()
+    inside = all(half <= x < w - half and half <= y < h - half for x, y in corners)
+    if inside and len(tips) == 1:
+        x, y = corners[0]
+        win = (mask[y - half: y + half + 1, x - half: x + half + 1] > 0)[None]
+    elif inside:
+        a = np.arange(-half, half + 1)
+        win = mask[(pi[:, 1:] + a)[:, :, None], (pi[:, :1] + a)[:, None, :]] > 0   # (K, W, W)
     else:  # a window cut by the mask's border: crossings only between two pixels of the mask
+        a = np.arange(-half, half + 1)
+        X, Y = pi[:, :1] + a, pi[:, 1:] + a                              # (K, W) image columns / rows
         win = mask[np.clip(Y, 0, h - 1)[:, :, None], np.clip(X, 0, w - 1)[:, None, :]] > 0
         ok = ((Y >= 0) & (Y < h))[:, :, None] & ((X >= 0) & (X < w))[:, None, :]
     eh = win[:, :, 1:] != win[:, :, :-1]
@@ -301,21 +306,27 @@ def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
     kk, nn = np.nonzero(np.concatenate([eh.reshape(K, -1), ev.reshape(K, -1)], axis=1))
     g, m = grid[nn], mom[nn]                                             # the crossings, by candidate
     D = _finger_directions(mask, P, r2 + 2.0, [t.direction for t in tips], inside=inside)
-    Dk = D[kk]
-    split = (kk == np.arange(K)[:, None]).astype(np.float64) if K > 1 else None
+    if K > 1:
+        Dk = D[kk]
+        split = (kk == np.arange(K)[:, None]).astype(np.float64)        # (K, M): which crossings are whose
     C = np.zeros((K, 2))                                                 # centres, relative to the pixels
     alive = [True] * K
     radius = [0.0] * K
     reach2 = (r2 + 2.5) ** 2
     for _ in range(2):
-        rel = g - C[kk] if K > 1 else g - C[0]
-        sel = (np.einsum("ij,ij->i", rel, Dk) <= 0.0) & (np.einsum("ij,ij->i", rel, rel) <= reach2)  # the cap
-        S = (split * sel) @ m if K > 1 else (sel @ m)[None]
+        if K > 1:
+            rel = g - C[kk]
+            sel = (np.einsum("ij,ij->i", rel, Dk) <= 0.0) & (np.einsum("ij,ij->i", rel, rel) <= reach2)  # the cap
+            S = (split * sel) @ m
+        else:
+            rel = g - C[0]
+            sel = (rel @ D[0] <= 0.0) & (np.einsum("ij,ij->i", rel, rel) <= reach2)
+            S = (sel @ m)[None]
         for k, sums in enumerate(S.tolist()):
             if not alive[k]:
                 continue
             fit = _kasa(*sums)
-            if fit is None or np.hypot(fit[0], fit[1]) > r2 + 1 or fit[2] > 2 * r2 + 2:
+            if fit is None or math.hypot(fit[0], fit[1]) > r2 + 1 or fit[2] > 2 * r2 + 2:
                 alive[k] = False
                 continue
             C[k] = fit[:2]

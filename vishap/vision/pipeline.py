@@ -194,7 +194,7 @@ class VisionPipeline:
         cands, modes = {}, {}
         self._window_tips = set()
         self._refine_ms = 0.0
-        self._skin_px = {}
+        self._skin_px = {}                  # each view's searched mask (its skin is counted only when needed)
         for side, img in (("left", frame.left), ("right", frame.right)):
             cands[side], modes[side] = self._detect(side, img, t, timings)
         t1 = time.perf_counter()
@@ -245,7 +245,9 @@ class VisionPipeline:
             return True
         r = self.K / (self._z if self._z is not None else self.config.z_default_m)
         cap_px = np.pi * r * r
-        return all(self._skin_px.get(s, 0) < 0.5 * cap_px for s in ("left", "right"))
+        # the masks' skin is counted here only: most frames find a fingertip and never ask
+        return all((int(np.count_nonzero(self._skin_px[s])) if s in self._skin_px else 0) < 0.5 * cap_px
+                   for s in ("left", "right"))
 
     def _filter_disparity(self, spf: StereoPoint, disparity_px: float, t: float) -> StereoPoint:
         """The filtered pair ``spf`` with its disparity replaced by a constant-velocity Kalman
@@ -304,8 +306,22 @@ class VisionPipeline:
         rejected = []  # (rank sum, reason)
         rect = {s: self.rig.rectify_points(np.array([tp.uv for tp in cands[s]], dtype=np.float64), s)
                 for s in ("left", "right") if cands[s]}  # each candidate rectified once
+        if L and R and len(L) * len(R) > 1:
+            # pairs off each other's epipolar line by more than the widest check of _match (the
+            # occluded-pair one: max_epipolar_px plus the larger cap radius) fail it there with
+            # this reason: say so without the checks
+            epi = np.abs(rect["left"][:, 1][:, None] - rect["right"][:, 1][None, :])
+            slack = (np.maximum.outer([tp.cap_radius_px for tp in L], [tp.cap_radius_px for tp in R])
+                     if self.config.occluded_pairs else 0.0)
+            far = epi > self.config.stereo.max_epipolar_px + slack
+        else:
+            far = None
         for il, tl0 in enumerate(L):
             for ir, tr0 in enumerate(R):
+                if far is not None and far[il, ir]:
+                    rejected.append((il + ir, f"epipolar error {epi[il, ir]:.2f} px (candidates {il + 1} of {len(L)} "
+                                              f"left, {ir + 1} of {len(R)} right)"))
+                    continue
                 tl, tr, sp, why = self._match(tl0, tr0, modes, t, rect["left"][il], rect["right"][ir])
                 if why:
                     which = f" (candidates {il + 1} of {len(L)} left, {ir + 1} of {len(R)} right)" if len(L) * len(R) > 1 else ""
@@ -502,7 +518,7 @@ class VisionPipeline:
         roi = snap_roi(roi, seg.config.tile, self._size)
         ts = time.perf_counter()
         mask = seg.segment(image, roi)
-        self._skin_px[side] = int(np.count_nonzero(mask))
+        self._skin_px[side] = mask  # counted by _finger_gone, when a frame finds no fingertip
         td = time.perf_counter()
         prior = None if pred is None or mode == "recheck" else pred - roi[:2]
         n_max = 1 if mode == "tracked" else cfg.max_candidates

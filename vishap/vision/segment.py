@@ -17,6 +17,7 @@ run in the tiles next to a foreground tile (a finger edge covering few pixels of
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -100,32 +101,41 @@ def _hue_bins(hue: np.ndarray, chroma: np.ndarray, cfg: SegmentConfig, lut: np.n
     return cv2.min(cv2.max(b, cv2.bitwise_not(chroma)), cfg.bins * cfg.sat_bins)
 
 
+_DENSE_MAX_TILES = 400  # regions of at most this many tiles get every tile's histogram (the same mask as
+#   the sparse choice of tiles, in fewer, cheaper calls: the tile gather pays off on large regions only)
+
+
 def _n_bins(cfg: SegmentConfig) -> int:
     return cfg.bins * cfg.sat_bins + (1 if cfg.achromatic_bin else 0)
 
 
 class _TileIndex:
-    """Cached ``tile_index * n_bins`` images for a given region shape."""
+    """``tile_index * n_bins`` of a region's pixels as a row and a column term (cached per size;
+    their sum is the index image)."""
 
     def __init__(self, tile: int, nb: int):
-        self.tile, self.nb, self._cache = tile, nb, {}
+        self.tile, self.nb = tile, nb
+        self._rows: dict = {}
+        self._cols: dict = {}
 
-    def get(self, h: int, w: int) -> tuple[np.ndarray, int, int]:
-        key = (h, w)
-        if key not in self._cache:
-            ty, tx = -(-h // self.tile), -(-w // self.tile)
-            rows = (np.arange(h) // self.tile)[:, None] * tx
-            cols = (np.arange(w) // self.tile)[None, :]
-            base = ((rows + cols) * self.nb).astype(np.intp)
-            self._cache[key] = (base, ty, tx)
-        return self._cache[key]
+    def get(self, h: int, w: int) -> tuple[np.ndarray, np.ndarray, int, int]:
+        t = self.tile
+        ty, tx = -(-h // t), -(-w // t)
+        rows = self._rows.get((h, tx))
+        if rows is None:
+            rows = self._rows[(h, tx)] = ((np.arange(h) // t) * (tx * self.nb)).astype(np.intp)[:, None]
+        cols = self._cols.get(w)
+        if cols is None:
+            cols = self._cols[w] = ((np.arange(w) // t) * self.nb).astype(np.intp)
+        return rows, cols, ty, tx
 
 
 def tile_histograms(bin_image: np.ndarray, tile: int, n_bins: int, _index: _TileIndex | None = None) -> np.ndarray:
     """All tile histograms of a bin image: (tiles_y, tiles_x, n_bins) int64, from one bincount."""
     h, w = bin_image.shape
-    base, ty, tx = (_index or _TileIndex(tile, n_bins)).get(h, w)
-    idx = base + bin_image
+    rows, cols, ty, tx = (_index or _TileIndex(tile, n_bins)).get(h, w)
+    idx = cols + bin_image
+    idx += rows
     return np.bincount(idx.ravel(), minlength=ty * tx * n_bins).reshape(ty, tx, n_bins)
 
 
@@ -153,7 +163,7 @@ def _foreground_counts(background: np.ndarray, threshold: float) -> np.ndarray:
 def snap_roi(roi, tile: int, size: tuple[int, int]) -> tuple[int, int, int, int]:
     """Clip ``(x0, y0, x1, y1)`` to the image and widen it to whole tiles."""
     w, h = size
-    x0, y0, x1, y1 = (int(np.floor(v)) for v in roi)
+    x0, y0, x1, y1 = (math.floor(v) for v in roi)
     x0 = max(0, (x0 // tile) * tile)
     y0 = max(0, (y0 // tile) * tile)
     x1 = min(w, -(-x1 // tile) * tile)
@@ -323,6 +333,10 @@ class Segmenter:
         t = c.tile
         ty, tx = -(-h // t), -(-w // t)
         dense = method == "dense" or h % t or w % t
+        if not dense and ty * tx <= _DENSE_MAX_TILES:  # a small region (a tracking window): every tile costs fewer calls
+            if not cv2.countNonZero(skin):
+                return skin
+            dense = True
         if not dense:
             skin_tiles = cv2.resize(skin, (tx, ty), interpolation=cv2.INTER_AREA)
             need = skin_tiles if self._dilate_kernel is None else cv2.dilate(skin_tiles, self._dilate_kernel)
@@ -334,7 +348,7 @@ class Segmenter:
             bins = None if hue is None else _hue_bins(hue, chroma, c, self._lut)
             fg = self.foreground_tiles(hsv, roi, bins=bins).view(np.uint8)
         else:
-            fg = self._foreground_sparse(hsv, roi, sel, (ty, tx))
+            fg = self._foreground_sparse(hsv, roi, sel, (ty, tx), hue, chroma)
         if self._dilate_kernel is not None:
             fg = cv2.dilate(fg, self._dilate_kernel)
         fg_px = cv2.resize(fg, (tx * t, ty * t), interpolation=cv2.INTER_NEAREST)[:h, :w]
@@ -347,7 +361,9 @@ class Segmenter:
                 mask[y0:y1, x0:x1] = binary_median(np.ascontiguousarray(mask[y0:y1, x0:x1]), c.median)
         return mask
 
-    def _foreground_sparse(self, hsv, roi, sel, shape) -> np.ndarray:
+    def _foreground_sparse(self, hsv, roi, sel, shape, hue=None, chroma=None) -> np.ndarray:
+        """Foreground tiles ``sel`` (flat indices) of the region, the others 0; ``hue``/``chroma``: the
+        region's hue channel and achromatic gate, if the caller has them (hue-only bins)."""
         c = self.config
         t = c.tile
         ty, tx = shape
@@ -359,12 +375,15 @@ class Segmenter:
             dy, dx = np.mgrid[0:t, 0:t]
             off = self._tile_offsets[key] = (dy * w + dx).ravel()
         idx = ((iy * t) * w + ix * t)[:, None] + off[None, :]          # (T, t²) pixel indices
-        px = hsv.reshape(-1, 3)[idx]                                    # (T, t², 3)
-        b = self._lut[px[..., 0]]
-        if c.sat_bins > 1:
-            b = b + self._slut[px[..., 1]]
-        if c.achromatic_bin:
-            b = np.where((px[..., 1] >= c.min_saturation) & (px[..., 2] >= c.min_value), b, c.bins * c.sat_bins)
+        if hue is not None and c.sat_bins == 1 and c.achromatic_bin:
+            b = np.where(chroma.ravel()[idx], self._lut[hue.ravel()[idx]], c.bins)
+        else:
+            px = hsv.reshape(-1, 3)[idx]                                # (T, t², 3)
+            b = self._lut[px[..., 0]]
+            if c.sat_bins > 1:
+                b = b + self._slut[px[..., 1]]
+            if c.achromatic_bin:
+                b = np.where((px[..., 1] >= c.min_saturation) & (px[..., 2] >= c.min_value), b, c.bins * c.sat_bins)
         nb = _n_bins(c)
         hist = np.bincount((np.arange(sel.size)[:, None] * nb + b).ravel(), minlength=sel.size * nb)
         x0, y0 = roi[0] // t, roi[1] // t

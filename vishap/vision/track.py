@@ -12,6 +12,7 @@ search window around the prediction, a confidence that drops with consecutive mi
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -160,14 +161,15 @@ class TipTracker:
         if not self.tracking:
             return None
         c = self.config
-        sig = np.sqrt(np.maximum(np.diag(self.kf.P)[:2], 0.0))
-        half = c.window_sigma * sig + c.window_margin_px + extra_px
-        if np.any(half > c.window_max_px):
+        P = self.kf.P
+        hx = c.window_sigma * math.sqrt(max(float(P[0, 0]), 0.0)) + c.window_margin_px + extra_px
+        hy = c.window_sigma * math.sqrt(max(float(P[1, 1]), 0.0)) + c.window_margin_px + extra_px
+        if hx > c.window_max_px or hy > c.window_max_px:
             return None
-        u, v = self.kf.position
+        u, v = self.kf.position.tolist()
         w, h = size
-        x0, x1 = max(0, int(u - half[0])), min(w, int(np.ceil(u + half[0])) + 1)
-        y0, y1 = max(0, int(v - half[1])), min(h, int(np.ceil(v + half[1])) + 1)
+        x0, x1 = max(0, int(u - hx)), min(w, math.ceil(u + hx) + 1)
+        y0, y1 = max(0, int(v - hy)), min(h, math.ceil(v + hy) + 1)
         if x1 <= x0 or y1 <= y0:
             return None
         return x0, y0, x1, y1
