@@ -72,6 +72,13 @@ def square_ring_offsets(r2: int) -> np.ndarray:
     return np.concatenate([half, -half])
 
 
+@lru_cache(maxsize=256)
+def _flat_offsets(r2: int, width: int) -> np.ndarray:
+    """:func:`square_ring_offsets` as offsets into a flattened mask ``width`` pixels wide."""
+    off = square_ring_offsets(r2)
+    return off[:, 1] * width + off[:, 0]
+
+
 @lru_cache(maxsize=64)
 def _rect(r2: int) -> np.ndarray:
     return np.ones((2 * r2 + 1, 2 * r2 + 1), np.uint8)
@@ -156,7 +163,7 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
     # steps 6–9 on the square ring
     off = square_ring_offsets(r2)
     n_half = 4 * r2
-    flat, off_flat = mask.ravel(), off[:, 1] * w + off[:, 0]  # candidates lie r2 inside the mask
+    flat, off_flat = mask.ravel(), _flat_offsets(r2, w)  # candidates lie r2 inside the mask
 
     def ring_test(xs, ys):
         ring = flat[(ys * w + xs)[:, None] + off_flat] > 0  # (M, 8 r2)
@@ -185,7 +192,7 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
         xs, ys, ring = ring_test(xs, ys)
     if xs.size == 0:
         return []
-    score = np.full(xs.size, float(area)) if scores is None else scores[ys, xs].astype(np.float64)
+    score = float(area) if scores is None else scores[ys, xs].astype(np.float64)  # (scalar: all equal)
     # step 10: best score first; ties broken by the prior or by extremity
     if prior_uv is not None:
         ref = np.asarray(prior_uv, dtype=np.float64)
@@ -196,7 +203,10 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
         centroid = np.array([m["m10"], m["m01"]]) / max(m["m00"], 1.0)
         ext = np.hypot(xs - centroid[0], ys - centroid[1])
         tie = -ext
-    order = [int(np.argmin(tie - 1e9 * score))] if max_tips == 1 else np.lexsort((tie, -score))
+    if max_tips == 1:
+        order = [int(np.argmin(tie - 1e9 * score))]
+    else:
+        order = np.lexsort((tie, -score)) if scores is not None else np.argsort(tie, kind="stable")
     alive = np.ones(xs.size, bool)
     chosen = []
     for k in order:
@@ -217,7 +227,8 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
         d = d_all[j]
         nd = np.hypot(*d)
         d = d / nd if nd > 0 else np.array([0.0, 1.0])
-        tips.append(Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r), score=float(score[k]),
+        tips.append(Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r),
+                              score=float(score if scores is None else score[k]),
                               n_candidates=int(xs.size), extremity_px=float(ext[k])))
     if config.refine:
         _refine_all(mask, tips, r2)
@@ -257,19 +268,20 @@ def fit_circle(pts: np.ndarray) -> tuple[np.ndarray, float] | None:
 
 
 @lru_cache(maxsize=64)
-def _edge_grid(half: int) -> tuple[np.ndarray, np.ndarray]:
+def _edge_grid(half: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where the mask's edge crossings of a (2·half+1)² window centred on a pixel can lie, relative
     to that pixel: the midpoints between horizontally, then vertically adjacent pixels (each in
-    row-major order), as ``(N, 2)`` offsets, and the moments ``[1, u, v, u², uv, v², u³, u²v, uv², v³]``
-    of each ``(N, 10)``. Every offset is a multiple of 0.5, so weighted sums of the moments over any
-    set of these points are exact (the circle fit's sums do not depend on the order of the points)."""
+    row-major order), as ``(N, 2)`` offsets, the moments ``[1, u, v, u², uv, v², u³, u²v, uv², v³]``
+    of each ``(N, 10)`` and ``u² + v²`` ``(N,)``. Every offset is a multiple of 0.5, so these values
+    and weighted sums of the moments over any set of the points are exact (the circle fit's sums do
+    not depend on the order of the points)."""
     a = np.arange(-half, half + 1, dtype=np.float64)
     hv, hu = np.meshgrid(a, a[:-1] + 0.5, indexing="ij")     # (W, W−1): between columns
     vv, vu = np.meshgrid(a[:-1] + 0.5, a, indexing="ij")     # (W−1, W): between rows
     u = np.concatenate([hu.ravel(), vu.ravel()])
     v = np.concatenate([hv.ravel(), vv.ravel()])
     mom = np.column_stack([np.ones_like(u), u, v, u * u, u * v, v * v, u ** 3, u * u * v, u * v * v, v ** 3])
-    return np.column_stack([u, v]), mom
+    return np.column_stack([u, v]), mom, u * u + v * v
 
 
 def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
@@ -281,31 +293,32 @@ def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
     its centre over ``r2 + 1`` px or grows over ``2·r2 + 2`` px keeps its pixel."""
     h, w = mask.shape
     half = r2 + 4
-    grid, mom = _edge_grid(half)
+    grid, mom, grid_r2 = _edge_grid(half)
     K = len(tips)
-    P = np.array([t.uv_pixel for t in tips], dtype=np.float64)          # (K, 2), whole pixels
-    pi = P.astype(np.intp)
-    corners = pi.tolist()
+    corners = [(int(t.uv_pixel[0]), int(t.uv_pixel[1])) for t in tips]  # whole pixels
     inside = all(half <= x < w - half and half <= y < h - half for x, y in corners)
-    if inside and len(tips) == 1:
+    if inside and K == 1:  # the tracked case: one window, a slice
         x, y = corners[0]
-        win = (mask[y - half: y + half + 1, x - half: x + half + 1] > 0)[None]
-    elif inside:
-        a = np.arange(-half, half + 1)
-        win = mask[(pi[:, 1:] + a)[:, :, None], (pi[:, :1] + a)[:, None, :]] > 0   # (K, W, W)
-    else:  # a window cut by the mask's border: crossings only between two pixels of the mask
+        win = mask[y - half: y + half + 1, x - half: x + half + 1] > 0
+        nn = np.flatnonzero(np.concatenate([(win[:, 1:] != win[:, :-1]).ravel(), (win[1:] != win[:-1]).ravel()]))
+        kk = None
+    else:
+        pi = np.array(corners, dtype=np.intp)
         a = np.arange(-half, half + 1)
         X, Y = pi[:, :1] + a, pi[:, 1:] + a                              # (K, W) image columns / rows
-        win = mask[np.clip(Y, 0, h - 1)[:, :, None], np.clip(X, 0, w - 1)[:, None, :]] > 0
-        ok = ((Y >= 0) & (Y < h))[:, :, None] & ((X >= 0) & (X < w))[:, None, :]
-    eh = win[:, :, 1:] != win[:, :, :-1]
-    ev = win[:, 1:, :] != win[:, :-1, :]
-    if not inside:
-        eh &= ok[:, :, 1:] & ok[:, :, :-1]
-        ev &= ok[:, 1:, :] & ok[:, :-1, :]
-    kk, nn = np.nonzero(np.concatenate([eh.reshape(K, -1), ev.reshape(K, -1)], axis=1))
+        if inside:
+            win = mask[Y[:, :, None], X[:, None, :]] > 0                 # (K, W, W)
+        else:  # a window cut by the mask's border: crossings only between two pixels of the mask
+            win = mask[np.clip(Y, 0, h - 1)[:, :, None], np.clip(X, 0, w - 1)[:, None, :]] > 0
+            ok = ((Y >= 0) & (Y < h))[:, :, None] & ((X >= 0) & (X < w))[:, None, :]
+        eh = win[:, :, 1:] != win[:, :, :-1]
+        ev = win[:, 1:, :] != win[:, :-1, :]
+        if not inside:
+            eh &= ok[:, :, 1:] & ok[:, :, :-1]
+            ev &= ok[:, 1:, :] & ok[:, :-1, :]
+        kk, nn = np.nonzero(np.concatenate([eh.reshape(K, -1), ev.reshape(K, -1)], axis=1))
     g, m = grid[nn], mom[nn]                                             # the crossings, by candidate
-    D = _finger_directions(mask, P, r2 + 2.0, [t.direction for t in tips], inside=inside)
+    D = _finger_directions(mask, corners, r2 + 2, [t.direction for t in tips], inside=inside)
     if K > 1:
         Dk = D[kk]
         split = (kk == np.arange(K)[:, None]).astype(np.float64)        # (K, M): which crossings are whose
@@ -313,11 +326,14 @@ def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
     alive = [True] * K
     radius = [0.0] * K
     reach2 = (r2 + 2.5) ** 2
-    for _ in range(2):
+    for it in range(2):
         if K > 1:
             rel = g - C[kk]
             sel = (np.einsum("ij,ij->i", rel, Dk) <= 0.0) & (np.einsum("ij,ij->i", rel, rel) <= reach2)  # the cap
             S = (split * sel) @ m
+        elif it == 0:  # centred on the pixel: the grid's own offsets
+            sel = (g @ D[0] <= 0.0) & (grid_r2[nn] <= reach2)
+            S = (sel @ m)[None]
         else:
             rel = g - C[0]
             sel = (rel @ D[0] <= 0.0) & (np.einsum("ij,ij->i", rel, rel) <= reach2)
@@ -333,7 +349,7 @@ def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
             radius[k] = fit[2]
     for k, tip in enumerate(tips):
         if alive[k]:
-            tip.uv = P[k] + C[k]
+            tip.uv = tip.uv_pixel + C[k]
             tip.direction = D[k]
             tip.cap_radius_px = radius[k]
 
@@ -366,20 +382,34 @@ _ANGLES = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
 _UNIT = np.column_stack([np.cos(_ANGLES), np.sin(_ANGLES)])
 
 
-def _finger_directions(mask: np.ndarray, C: np.ndarray, rho: float, fallback, *, inside: bool = False) -> np.ndarray:
-    """Unit vectors from the points ``C`` (K, 2) into the finger: the mean direction of the skin
-    samples on a circle of radius ``rho`` around each (``fallback[k]`` where none is skin);
-    ``inside``: the caller knows every circle lies within the mask."""
+@lru_cache(maxsize=64)
+def _circle_offsets(rho: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Integer offsets (dx, dy) of the 64 samples on a circle of radius ``rho`` around a pixel:
+    ``rint(p + rho·unit) = p + rint(rho·unit)`` for a whole pixel p unless a sample lies half-way
+    between pixels (None then; no radius up to 200 px has one)."""
+    x = rho * _UNIT
+    if np.any(np.abs(np.abs(x - np.floor(x)) - 0.5) < 1e-6):
+        return None
+    q = np.rint(x).astype(np.intp)
+    return q[:, 0].copy(), q[:, 1].copy()
+
+
+def _finger_directions(mask: np.ndarray, corners, rho: int, fallback, *, inside: bool = False) -> np.ndarray:
+    """Unit vectors from the whole pixels ``corners`` [(x, y), ...] into the finger: the mean
+    direction of the skin samples on a circle of radius ``rho`` around each (``fallback[k]`` where
+    none is skin); ``inside``: the caller knows every circle lies within the mask."""
     h, w = mask.shape
-    q = np.rint(C[:, None, :] + rho * _UNIT).astype(np.intp)            # (K, 64, 2)
-    qx, qy = q[..., 0], q[..., 1]
-    if inside:
-        skin = mask[qy, qx] > 0
+    circle = _circle_offsets(rho) if inside else None
+    if circle is not None:
+        P = np.array(corners, dtype=np.intp)
+        skin = mask[P[:, 1:] + circle[1], P[:, :1] + circle[0]] > 0     # (K, 64)
     else:
+        q = np.rint(np.array(corners, dtype=np.float64)[:, None, :] + rho * _UNIT).astype(np.intp)  # (K, 64, 2)
+        qx, qy = q[..., 0], q[..., 1]
         ok = (qx >= 0) & (qx < w) & (qy >= 0) & (qy < h)
         skin = np.zeros(ok.shape, bool)
         skin[ok] = mask[qy[ok], qx[ok]] > 0
-    D = skin.astype(np.float64) @ _UNIT
+    D = skin @ _UNIT
     for k, (dx, dy) in enumerate(D.tolist()):
         n = math.hypot(dx, dy)
         D[k] = (dx / n, dy / n) if n > 0 else fallback[k]

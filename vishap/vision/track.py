@@ -93,8 +93,8 @@ class KalmanCV:
         # H = [I 0]: H x, H P Hᵀ and P Hᵀ are slices
         self.y = z - self.x[:d]
         PHt = self.P[:, :d]
-        self.S = PHt[:d] + self.R
-        K = np.linalg.solve(self.S, PHt.T).T
+        self.S = S = PHt[:d] + self.R
+        K = PHt @ _inverse(S) if d <= 2 else np.linalg.solve(S, PHt.T).T
         self.x = self.x + K @ self.y
         I_KH = self._I.copy()
         I_KH[:, :d] -= K
@@ -115,6 +115,16 @@ class KalmanCV:
         y = np.asarray(z, dtype=np.float64) - self.H @ self.x
         S = self.H @ self.P @ self.H.T + self.R
         return float(np.sqrt(y @ np.linalg.solve(S, y)))
+
+
+def _inverse(S: np.ndarray) -> np.ndarray:
+    """Inverse of a 1×1 or 2×2 innovation covariance in closed form (a general solver's checks
+    cost more than the arithmetic at this size)."""
+    if S.shape[0] == 1:
+        return 1.0 / S
+    (a, b), (c, e) = S.tolist()
+    det = a * e - b * c
+    return np.array([[e / det, -b / det], [-c / det, a / det]])
 
 
 @dataclass(frozen=True)
