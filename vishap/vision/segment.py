@@ -358,7 +358,7 @@ class Segmenter:
             if bw:  # outside the mask's box (plus half the aperture) the median is 0: filter the box only
                 k = c.median // 2 + 1
                 x0, y0, x1, y1 = max(0, bx - k), max(0, by - k), min(w, bx + bw + k), min(h, by + bh + k)
-                mask[y0:y1, x0:x1] = binary_median(np.ascontiguousarray(mask[y0:y1, x0:x1]), c.median)
+                _median_in_place(mask[y0:y1, x0:x1], c.median)
         return mask
 
     def _foreground_sparse(self, hsv, roi, sel, shape, hue=None, chroma=None) -> np.ndarray:
@@ -401,6 +401,19 @@ def binary_median(mask: np.ndarray, k: int) -> np.ndarray:
     ones = cv2.threshold(mask, 0, 1, cv2.THRESH_BINARY)[1]
     count = cv2.boxFilter(ones, -1, (k, k), normalize=False, borderType=cv2.BORDER_REPLICATE)
     return cv2.threshold(count, (k * k) // 2, 255, cv2.THRESH_BINARY)[1]
+
+
+def _median_in_place(mask: np.ndarray, k: int) -> None:
+    """:func:`binary_median` of a mask holding only 0 and 255 (a view is fine), written into it.
+    For k ≤ 7 the box mean of the 0/255 values is thresholded half-way between the means of
+    ``(k² − 1)/2`` and ``(k² + 1)/2`` skin neighbours (at least 5 grey levels apart, so the mean's
+    rounding cannot cross it): one call fewer than the count, and no copy."""
+    if k > 7:
+        mask[...] = binary_median(np.ascontiguousarray(mask), k)
+        return
+    level = int(255 * (k * k // 2 + 0.5) / (k * k))
+    cv2.threshold(cv2.boxFilter(mask, -1, (k, k), borderType=cv2.BORDER_REPLICATE), level, 255, cv2.THRESH_BINARY,
+                  dst=mask)
 
 
 def _check_image(img, size) -> np.ndarray:

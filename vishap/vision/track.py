@@ -5,7 +5,8 @@ We search for the fingertip in a small window around the predicted position."
 
 :class:`KalmanCV` is a plain constant-velocity Kalman filter in ``d`` dimensions (image: d = 2)
 whose state is public, as in filterpy: ``x`` (position then velocity), ``P``, ``F``, ``Q``, ``H``,
-``R``, the prior (``x_prior``, ``P_prior``) and the posterior (``x_post``, ``P_post``);
+``R``, the prior (``x_prior``, ``P_prior``) and the posterior (``x_post``, ``P_post``) — kept by
+reference: each step replaces ``x`` and ``P`` with new arrays and never writes into them;
 ``predict(dt)``; ``update(z)``; ``update(None)`` records a miss. :class:`TipTracker` adds the
 search window around the prediction, a confidence that drops with consecutive misses, and the
 "lost" state after which the caller re-detects over the full frame.
@@ -42,8 +43,8 @@ class KalmanCV:
         self.H = np.hstack([np.eye(d), np.zeros((d, d))])
         self.R = np.eye(d) * float(r)
         self._p0 = (p0_pos, p0_vel)
-        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.x_prior, self.P_prior = self.x, self.P
+        self.x_post, self.P_post = self.x, self.P
         self.y = np.zeros(d)       # last innovation
         self.S = np.eye(d)         # last innovation covariance
         self.misses = 0            # consecutive update(None) calls
@@ -57,7 +58,7 @@ class KalmanCV:
         z = np.asarray(z, dtype=np.float64).reshape(d)
         self.x = np.r_[z, np.zeros(d)]
         self.P = np.diag(np.r_[np.full(d, self._p0[0]), np.full(d, self._p0[1])])
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.x_post, self.P_post = self.x, self.P
         self.misses = 0
         self.initialized = True
 
@@ -77,14 +78,14 @@ class KalmanCV:
             self.Q[idx + d, idx + d] = q * dt
         self.x = self.F @ self.x
         self.P = self.F @ self.P @ self.F.T + self.Q
-        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
+        self.x_prior, self.P_prior = self.x, self.P
         return self.x[:d]
 
     def update(self, z) -> None:
         """Correct with measurement ``z`` (d,), or record a miss with ``None`` (state = prior)."""
         if z is None:
             self.misses += 1
-            self.x_post, self.P_post = self.x.copy(), self.P.copy()
+            self.x_post, self.P_post = self.x, self.P
             return
         d = self.dim
         z = np.asarray(z, dtype=np.float64).reshape(d)
@@ -99,7 +100,7 @@ class KalmanCV:
         I_KH = self._I.copy()
         I_KH[:, :d] -= K
         self.P = I_KH @ self.P @ I_KH.T + K @ self.R @ K.T  # Joseph form
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.x_post, self.P_post = self.x, self.P
         self.misses = 0
 
     @property
