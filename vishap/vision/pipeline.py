@@ -517,16 +517,21 @@ class VisionPipeline:
             roi = (0, 0, self._size[0], self._size[1])
         roi = snap_roi(roi, seg.config.tile, self._size)
         ts = time.perf_counter()
-        mask = seg.segment(image, roi)
+        # the mask only where it can hold skin, widened by the largest square ring searched (a
+        # full frame: the same candidates without allocating and scanning all of it)
+        pad = int(np.ceil((1 + cfg.fingertip.delta_r_frac) * self.K / min(z, *cfg.z_search_m))) + 2
+        mask, org = seg.segment_region(image, roi, pad=pad)
         self._skin_px[side] = mask  # counted by _finger_gone, when a frame finds no fingertip
         td = time.perf_counter()
-        prior = None if pred is None or mode == "recheck" else pred - roi[:2]
+        prior = None if pred is None or mode == "recheck" else pred - org
         n_max = 1 if mode == "tracked" else cfg.max_candidates
         if mode != "full" or self._z is not None:
             tips = detect_fingertips(mask, self.K / z, cfg.fingertip, prior_uv=prior, max_tips=n_max)
         else:  # first acquisition, depth unknown: candidates at each depth of the working range
             tips = search_tips(mask, [self.K / zz for zz in (z, *cfg.z_search_m)], cfg.fingertip, prior_uv=prior,
                                max_tips=n_max)
+        for tip in tips:  # image pixels from here on
+            tip.uv = tip.uv + org
         if window is not None and tips:
             tips = self._keep_track_measurement(tips, image, seg, window, pred, z)
         if not tips and mode == "tracked" and cfg.full_search_on_miss:
@@ -540,10 +545,8 @@ class VisionPipeline:
             gate = 2 * r * (1 + cfg.fingertip.delta_r_frac) + cfg.max_speed_m_s * (since + 1 / 30) * self.rig.fx_px / z
             tips = [tp for tp in tips if np.hypot(*(tp.uv - pred)) <= gate]
             if tips:
-                roi, mode = full, "recheck"
+                mode = "recheck"
         te = time.perf_counter()
         timings[f"segment_{side}_ms"] = timings.get(f"segment_{side}_ms", 0.0) + (td - ts) * 1e3
         timings[f"detect_{side}_ms"] = timings.get(f"detect_{side}_ms", 0.0) + (te - td) * 1e3
-        for tip in tips:
-            tip.uv = tip.uv + roi[:2]
         return tips, mode

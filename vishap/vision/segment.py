@@ -272,7 +272,24 @@ class Segmenter:
         hsv = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_BGR2HSV)
         return self.segment_hsv(hsv, roi, method=method)
 
-    def _segment_coarse(self, image: np.ndarray, roi) -> np.ndarray:
+    def segment_region(self, image: np.ndarray, roi=None, *, pad: int = 0) -> tuple[np.ndarray, tuple[int, int]]:
+        """:meth:`segment`, cut to where it can hold skin: ``(mask, (x, y))``, the mask over the
+        boxes the coarse pass segments (their bounding box) widened by ``pad`` pixels within the
+        region, and that mask's top-left corner in the image. :meth:`segment`'s mask is zero
+        outside it (a 1×1 zero mask when there is no skin); a region without the coarse pass comes
+        whole. A detector that looks ``pad`` pixels around skin finds the same there, without
+        allocating and scanning the whole frame."""
+        if self.background is None:
+            raise VisionError("segment_region() before learn(): no background model")
+        image = _check_image(image, self.image_size)
+        c = self.config
+        roi = (0, 0, *self.image_size) if roi is None else snap_roi(roi, c.tile, self.image_size)
+        x0, y0, x1, y1 = roi
+        if c.coarse > 1 and (x1 - x0) * (y1 - y0) >= c.coarse_min_px:
+            return self._segment_coarse(image, roi, pad=pad)
+        return self.segment(image, roi), (x0, y0)
+
+    def _segment_coarse(self, image: np.ndarray, roi, *, pad: int | None = None):
         """:meth:`segment` of a large region through a coarse pass: the skin test on a subsampled
         image (every ``coarse``-th pixel), its skin regions widened by ``coarse_margin`` coarse
         pixels, and the full-resolution segmentation run only in the tile-aligned boxes of those
@@ -290,32 +307,40 @@ class Segmenter:
         else:  # the same samples as the slice (nearest neighbour at an integer step), without a strided copy
             small = cv2.resize(image[y0:y1, x0:x1], ((x1 - x0) // k, (y1 - y0) // k), interpolation=cv2.INTER_NEAREST)
         sk = self.skin.mask(small)
-        out = np.zeros((y1 - y0, x1 - x0), np.uint8)
         # a lone skin sample (sensor noise on a skin-like background) starts no box: a region that
         # can hold a fingertip (a disk over 2·coarse pixels wide) has neighbouring samples
         near = cv2.boxFilter(cv2.threshold(sk, 0, 1, cv2.THRESH_BINARY)[1], -1, (3, 3), normalize=False,
                              borderType=cv2.BORDER_CONSTANT)
         sk = cv2.bitwise_and(sk, sk, mask=(near >= 2).view(np.uint8))
-        if not sk.any():
-            return out
-        if c.coarse_margin:
-            sk = cv2.dilate(sk, self._coarse_kernel)
-        # 16-bit labels where they fit (several times faster here than 32-bit ones)
-        ltype = cv2.CV_16U if sk.size < 2 ** 16 else cv2.CV_32S
-        n, _, stats, _ = cv2.connectedComponentsWithStats(sk, connectivity=8, ltype=ltype)
-        for bx, by, bw, bh, _area in stats[1:]:
-            bx0, by0, bx1, by1 = snap_roi((x0 + bx * k, y0 + by * k, x0 + (bx + bw) * k, y0 + (by + bh) * k),
-                                          c.tile, self.image_size)
-            # within the region (tile-aligned, so the box stays tile-aligned)
-            bx0, by0, bx1, by1 = max(bx0, x0), max(by0, y0), min(bx1, x1), min(by1, y1)
-            box = (bx0, by0, bx1, by1)
-            if bx1 <= bx0 or by1 <= by0:
-                continue
+        boxes = []
+        if sk.any():
+            if c.coarse_margin:
+                sk = cv2.dilate(sk, self._coarse_kernel)
+            # 16-bit labels where they fit (several times faster here than 32-bit ones)
+            ltype = cv2.CV_16U if sk.size < 2 ** 16 else cv2.CV_32S
+            n, _, stats, _ = cv2.connectedComponentsWithStats(sk, connectivity=8, ltype=ltype)
+            for bx, by, bw, bh, _area in stats[1:].tolist():
+                bx0, by0, bx1, by1 = snap_roi((x0 + bx * k, y0 + by * k, x0 + (bx + bw) * k, y0 + (by + bh) * k),
+                                              c.tile, self.image_size)
+                # within the region (tile-aligned, so the box stays tile-aligned)
+                bx0, by0, bx1, by1 = max(bx0, x0), max(by0, y0), min(bx1, x1), min(by1, y1)
+                if bx1 > bx0 and by1 > by0:
+                    boxes.append((bx0, by0, bx1, by1))
+        if pad is None:
+            ox, oy, out = x0, y0, np.zeros((y1 - y0, x1 - x0), np.uint8)
+        elif not boxes:
+            return np.zeros((1, 1), np.uint8), (x0, y0)
+        else:  # the boxes' bounding box, widened by pad within the region
+            ox, oy = max(x0, min(b[0] for b in boxes) - pad), max(y0, min(b[1] for b in boxes) - pad)
+            ex, ey = min(x1, max(b[2] for b in boxes) + pad), min(y1, max(b[3] for b in boxes) + pad)
+            out = np.zeros((ey - oy, ex - ox), np.uint8)
+        for box in boxes:
+            bx0, by0, bx1, by1 = box
             hsv = cv2.cvtColor(image[by0:by1, bx0:bx1], cv2.COLOR_BGR2HSV)
             m = self.segment_hsv(hsv, box)
-            dst = out[by0 - y0: by1 - y0, bx0 - x0: bx1 - x0]
+            dst = out[by0 - oy: by1 - oy, bx0 - ox: bx1 - ox]
             cv2.bitwise_or(dst, m, dst=dst)
-        return out
+        return out if pad is None else (out, (ox, oy))
 
     def segment_hsv(self, hsv: np.ndarray, roi: tuple[int, int, int, int], *, method: str = "sparse") -> np.ndarray:
         """Skin mask of an HSV region. ``method="sparse"`` (default) builds histograms only for the
