@@ -250,21 +250,11 @@ def fit_circle(pts: np.ndarray) -> tuple[np.ndarray, float] | None:
     if n < 5:
         return None
     m = pts.sum(axis=0) / n
-    q = pts - m
+    q = pts - m  # centred: the sums stay small
     u, v = q[:, 0], q[:, 1]
-    b = u * u + v * v
-    # normal equations of [u v 1]·[a b c] = u²+v²: the 1-column decouples (Σu = Σv = 0)
-    suu, suv, svv = u @ u, u @ v, v @ v
-    det = suu * svv - suv * suv
-    if not det > 1e-12 * max(suu * svv, 1e-300):
-        return None
-    bu, bv = u @ b, v @ b
-    sol = np.array([(svv * bu - suv * bv) / det, (suu * bv - suv * bu) / det, b.sum() / n])
-    c = sol[:2] / 2
-    rad2 = sol[2] + c @ c
-    if not np.isfinite(rad2) or rad2 <= 0:
-        return None
-    return c + m, float(np.sqrt(rad2))
+    uu, vv = u * u, v * v
+    fit = _kasa(n, u.sum(), v.sum(), uu.sum(), u @ v, vv.sum(), uu @ u, uu @ v, vv @ u, vv @ v)
+    return None if fit is None else (np.array(fit[:2]) + m, fit[2])
 
 
 @lru_cache(maxsize=64)

@@ -79,26 +79,20 @@ def _sat_lut(cfg: SegmentConfig) -> np.ndarray:
     return np.minimum(s * cfg.sat_bins // max(1, 256 - cfg.min_saturation), cfg.sat_bins - 1).astype(np.uint8)
 
 
-def hue_bin_image(hsv: np.ndarray, cfg: SegmentConfig, lut: np.ndarray | None = None) -> np.ndarray:
+def hue_bin_image(hsv: np.ndarray, cfg: SegmentConfig, lut: np.ndarray | None = None, *,
+                  hue: np.ndarray | None = None, chroma: np.ndarray | None = None) -> np.ndarray:
     """Per-pixel histogram bin (uint8): chromatic bins ``0…bins·sat_bins−1``, then one bin for
-    achromatic pixels (when ``achromatic_bin``)."""
+    achromatic pixels (when ``achromatic_bin``). ``hue``, ``chroma``: the image's hue channel and
+    its achromatic gate (``inRange`` of ``min_saturation``/``min_value``), if the caller has them."""
     lut = _bin_lut(cfg.bins, cfg.sat_bins) if lut is None else lut
-    b = cv2.LUT(np.ascontiguousarray(hsv[..., 0]), lut)
+    b = cv2.LUT(np.ascontiguousarray(hsv[..., 0]) if hue is None else hue, lut)
     if cfg.sat_bins > 1:
         b = cv2.add(b, cv2.LUT(np.ascontiguousarray(hsv[..., 1]), _sat_lut(cfg)))
     if cfg.achromatic_bin:
-        chroma = cv2.inRange(hsv, (0, cfg.min_saturation, cfg.min_value), (255, 255, 255))
+        if chroma is None:
+            chroma = cv2.inRange(hsv, (0, cfg.min_saturation, cfg.min_value), (255, 255, 255))
         b = cv2.min(cv2.max(b, cv2.bitwise_not(chroma)), cfg.bins * cfg.sat_bins)
     return b
-
-
-def _hue_bins(hue: np.ndarray, chroma: np.ndarray, cfg: SegmentConfig, lut: np.ndarray) -> np.ndarray | None:
-    """:func:`hue_bin_image` of hue-only bins with an achromatic bin, from the hue channel and the
-    achromatic gate's ``inRange`` the caller already has (None for other bin layouts)."""
-    if cfg.sat_bins > 1 or not cfg.achromatic_bin:
-        return None
-    b = cv2.LUT(hue, lut)
-    return cv2.min(cv2.max(b, cv2.bitwise_not(chroma)), cfg.bins * cfg.sat_bins)
 
 
 _DENSE_MAX_TILES = 400  # regions of at most this many tiles get every tile's histogram (the same mask as
@@ -370,8 +364,7 @@ class Segmenter:
                 return np.zeros((h, w), np.uint8)
             dense = sel.size > 0.4 * ty * tx
         if dense:
-            bins = None if hue is None else _hue_bins(hue, chroma, c, self._lut)
-            fg = self.foreground_tiles(hsv, roi, bins=bins).view(np.uint8)
+            fg = self.foreground_tiles(hsv, roi, bins=hue_bin_image(hsv, c, self._lut, hue=hue, chroma=chroma)).view(np.uint8)
         else:
             fg = self._foreground_sparse(hsv, roi, sel, (ty, tx), hue, chroma)
         if self._dilate_kernel is not None:
