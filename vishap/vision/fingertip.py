@@ -171,33 +171,36 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
         n_diag = (ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
         keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2) \
             & (n_diag <= config.max_diagonal_pairs)
-        return xs[keep], ys[keep], ring[keep]
+        return xs[keep], ys[keep], ring[keep], keep
 
+    ref = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64)
+    tie = None
     if prior_uv is not None and max_tips == 1 and scores is None and xs.size > 48:
         # equal scores: the winner is the valid candidate nearest the prior, so test candidates in
         # order of distance, a chunk at a time, and stop at the first chunk holding a valid one
-        order = np.argsort((xs - prior_uv[0]) ** 2 + (ys - prior_uv[1]) ** 2, kind="stable")
+        d2 = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
+        order = np.argsort(d2, kind="stable")
         for k in range(0, order.size, 32):
             sel = order[k: k + 32]
-            cx, cy, cring = ring_test(xs[sel], ys[sel])
+            cx, cy, cring, keep = ring_test(xs[sel], ys[sel])
             if cx.size:
                 break
-        xs, ys, ring = cx, cy, cring
+        xs, ys, ring, tie = cx, cy, cring, d2[sel][keep]  # (the distances of step 10, already known)
     else:
         if xs.size > _PREFILTER_MIN:  # many candidates (full frame): S_square of all from an integral image first
             ii = cv2.integral(cv2.threshold(mask, 0, 1, cv2.THRESH_BINARY)[1])
             s_square = _box_sum(ii, xs, ys, r2) - _box_sum(ii, xs, ys, r2 - 1)
             keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2)
             xs, ys = xs[keep], ys[keep]
-        xs, ys, ring = ring_test(xs, ys)
+        xs, ys, ring, _ = ring_test(xs, ys)
     if xs.size == 0:
         return []
     score = float(area) if scores is None else scores[ys, xs].astype(np.float64)  # (scalar: all equal)
     # step 10: best score first; ties broken by the prior or by extremity
     if prior_uv is not None:
-        ref = np.asarray(prior_uv, dtype=np.float64)
-        tie = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
-        ext = np.zeros(xs.size)
+        if tie is None:
+            tie = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
+        ext = None                  # (extremity not measured: 0)
     else:
         m = cv2.moments(mask, binaryImage=True)
         centroid = np.array([m["m10"], m["m01"]]) / max(m["m00"], 1.0)
@@ -229,7 +232,7 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
         d = d / nd if nd > 0 else np.array([0.0, 1.0])
         tips.append(Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r),
                               score=float(score if scores is None else score[k]),
-                              n_candidates=int(xs.size), extremity_px=float(ext[k])))
+                              n_candidates=int(xs.size), extremity_px=0.0 if ext is None else float(ext[k])))
     if config.refine:
         _refine_all(mask, tips, r2)
     return tips
@@ -390,7 +393,10 @@ def _finger_directions(mask: np.ndarray, corners, rho: int, fallback, *, inside:
     none is skin); ``inside``: the caller knows every circle lies within the mask."""
     h, w = mask.shape
     circle = _circle_offsets(rho) if inside else None
-    if circle is not None:
+    if circle is not None and len(corners) == 1:
+        x, y = corners[0]
+        skin = (mask[y + circle[1], x + circle[0]] > 0)[None]
+    elif circle is not None:
         P = np.array(corners, dtype=np.intp)
         skin = mask[P[:, 1:] + circle[1], P[:, :1] + circle[0]] > 0     # (K, 64)
     else:
