@@ -95,7 +95,8 @@ class KalmanCV:
         self.y = z - self.x[:d]
         PHt = self.P[:, :d]
         self.S = S = PHt[:d] + self.R
-        K = PHt @ _inverse(S) if d <= 2 else np.linalg.solve(S, PHt.T).T
+        S_inv = _inverse(S) if d <= 2 else None
+        K = PHt @ S_inv if S_inv is not None else np.linalg.solve(S, PHt.T).T
         self.x = self.x + K @ self.y
         I_KH = self._I.copy()
         I_KH[:, :d] -= K
@@ -118,13 +119,15 @@ class KalmanCV:
         return float(np.sqrt(y @ np.linalg.solve(S, y)))
 
 
-def _inverse(S: np.ndarray) -> np.ndarray:
+def _inverse(S: np.ndarray) -> np.ndarray | None:
     """Inverse of a 1×1 or 2×2 innovation covariance in closed form (a general solver's checks
-    cost more than the arithmetic at this size)."""
+    cost more than the arithmetic at this size); None when singular (the solver then says so)."""
     if S.shape[0] == 1:
-        return 1.0 / S
+        return 1.0 / S if S[0, 0] != 0 else None
     (a, b), (c, e) = S.tolist()
     det = a * e - b * c
+    if det == 0 or not math.isfinite(det):
+        return None
     return np.array([[e / det, -b / det], [-c / det, a / det]])
 
 
