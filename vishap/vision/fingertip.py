@@ -327,14 +327,14 @@ def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
     for it in range(2):
         if K > 1:
             rel = g - C[kk]
-            sel = (np.einsum("ij,ij->i", rel, Dk) <= 0.0) & (np.einsum("ij,ij->i", rel, rel) <= reach2)  # the cap
+            sel = ((rel * Dk) @ _ONES2 <= 0.0) & ((rel * rel) @ _ONES2 <= reach2)  # the cap
             S = (split * sel) @ m
         elif it == 0:  # centred on the pixel: the grid's own offsets
             sel = (g @ D[0] <= 0.0) & (grid_r2[nn] <= reach2)
             S = (sel @ m)[None]
         else:
             rel = g - C[0]
-            sel = (rel @ D[0] <= 0.0) & (np.einsum("ij,ij->i", rel, rel) <= reach2)
+            sel = (rel @ D[0] <= 0.0) & ((rel * rel) @ _ONES2 <= reach2)
             S = (sel @ m)[None]
         for k, sums in enumerate(S.tolist()):
             if not alive[k]:
@@ -376,6 +376,7 @@ def _kasa(n, su, sv, suu, suv, svv, suuu, suuv, suvv, svvv):
     return cx + mx, cy + my, math.sqrt(rad2)
 
 
+_ONES2 = np.ones(2)  # row sums of (N, 2) products by one small matrix product
 _ANGLES = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
 _UNIT = np.column_stack([np.cos(_ANGLES), np.sin(_ANGLES)])
 
