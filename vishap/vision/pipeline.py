@@ -275,7 +275,7 @@ class VisionPipeline:
         # rectified with zero disparity at infinity (Q[3, 3] = 0): the point scales with 1/disparity
         # along its ray, so the pair's point is moved, not triangulated again
         scale = spf.disparity_px / d
-        return replace(spf, p_cam=spf.p_cam * scale, cov_cam=spf.cov_cam * scale ** 2, disparity_px=d)
+        return StereoPoint(spf.ok, spf.p_cam * scale, spf.cov_cam * scale ** 2, d, spf.epipolar_px, spf.reason)
 
     def _refine_pair(self, images, tl, tr, sp):
         """The chosen pair's cap centres refined on the images (stereo.refine_tip_pair); the masks'

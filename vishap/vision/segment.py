@@ -157,11 +157,11 @@ def _foreground_counts(background: np.ndarray, threshold: float) -> np.ndarray:
 def snap_roi(roi, tile: int, size: tuple[int, int]) -> tuple[int, int, int, int]:
     """Clip ``(x0, y0, x1, y1)`` to the image and widen it to whole tiles."""
     w, h = size
-    x0, y0, x1, y1 = (math.floor(v) for v in roi)
-    x0 = max(0, (x0 // tile) * tile)
-    y0 = max(0, (y0 // tile) * tile)
-    x1 = min(w, -(-x1 // tile) * tile)
-    y1 = min(h, -(-y1 // tile) * tile)
+    x0, y0, x1, y1 = roi
+    x0 = max(0, (math.floor(x0) // tile) * tile)
+    y0 = max(0, (math.floor(y0) // tile) * tile)
+    x1 = min(w, -(-math.floor(x1) // tile) * tile)
+    y1 = min(h, -(-math.floor(y1) // tile) * tile)
     return x0, y0, max(x0, x1), max(y0, y1)
 
 
