@@ -72,6 +72,11 @@ def square_ring_offsets(r2: int) -> np.ndarray:
     return np.concatenate([half, -half])
 
 
+@lru_cache(maxsize=64)
+def _ring_offsets_f(r2: int) -> np.ndarray:
+    return square_ring_offsets(r2).astype(np.float64)
+
+
 @lru_cache(maxsize=256)
 def _flat_offsets(r2: int, width: int) -> np.ndarray:
     """:func:`square_ring_offsets` as offsets into a flattened mask ``width`` pixels wide."""
@@ -223,7 +228,7 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
     # direction into the finger: the mean offset of each tip's skin ring pixels (sums of small
     # integers: exact in any order)
     ring_k = ring[sel]
-    d_all = (ring_k.astype(np.float64) @ off.astype(np.float64)) / ring_k.sum(axis=1)[:, None]
+    d_all = (ring_k @ _ring_offsets_f(r2)) / ring_k.sum(axis=1)[:, None]
     tips = []
     for j, k in enumerate(chosen):
         p = np.array([xs[k], ys[k]], dtype=np.float64)

@@ -11,6 +11,7 @@ explicitly with :meth:`VisionPipeline.learn_background`.
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field, replace
 
@@ -519,7 +520,7 @@ class VisionPipeline:
         ts = time.perf_counter()
         # the mask only where it can hold skin, widened by the largest square ring searched (a
         # full frame: the same candidates without allocating and scanning all of it)
-        pad = int(np.ceil((1 + cfg.fingertip.delta_r_frac) * self.K / min(z, *cfg.z_search_m))) + 2
+        pad = math.ceil((1 + cfg.fingertip.delta_r_frac) * self.K / min(z, *cfg.z_search_m)) + 2
         mask, org = seg.segment_region(image, roi, pad=pad)
         self._skin_px[side] = mask  # counted by _finger_gone, when a frame finds no fingertip
         td = time.perf_counter()

@@ -258,6 +258,11 @@ class Segmenter:
             roi = (0, 0, self.image_size[0], self.image_size[1])
         else:
             roi = snap_roi(roi, c.tile, self.image_size)
+        return self._segment_snapped(image, roi, method)
+
+    def _segment_snapped(self, image: np.ndarray, roi, method: str = "sparse") -> np.ndarray:
+        """:meth:`segment` of a checked image and a tile-aligned region within it."""
+        c = self.config
         x0, y0, x1, y1 = roi
         if x1 <= x0 or y1 <= y0:
             return np.zeros((max(0, y1 - y0), max(0, x1 - x0)), np.uint8)
@@ -281,7 +286,7 @@ class Segmenter:
         x0, y0, x1, y1 = roi
         if c.coarse > 1 and (x1 - x0) * (y1 - y0) >= c.coarse_min_px:
             return self._segment_coarse(image, roi, pad=pad)
-        return self.segment(image, roi), (x0, y0)
+        return self._segment_snapped(image, roi), (x0, y0)
 
     def _segment_coarse(self, image: np.ndarray, roi, *, pad: int | None = None):
         """:meth:`segment` of a large region through a coarse pass: the skin test on a subsampled
