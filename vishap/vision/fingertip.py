@@ -212,29 +212,27 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
         ext = np.hypot(xs - centroid[0], ys - centroid[1])
         tie = -ext
     if max_tips == 1:
-        order = [int(np.argmin(tie - 1e9 * score))]
+        chosen = [int(np.argmin(tie - 1e9 * score))]
     else:
         order = np.lexsort((tie, -score)) if scores is not None else np.argsort(tie, kind="stable")
-    alive = np.ones(xs.size, bool)
-    chosen = []
-    for k in order:
-        if not alive[k]:
-            continue
-        chosen.append(int(k))
-        if len(chosen) >= max_tips:
-            break
-        alive &= (xs - xs[k]) ** 2 + (ys - ys[k]) ** 2 > (2 * r2) ** 2
-    sel = np.array(chosen, dtype=np.intp)
+        alive = np.ones(xs.size, bool)
+        chosen = []
+        for k in order.tolist():
+            if not alive[k]:
+                continue
+            chosen.append(k)
+            if len(chosen) >= max_tips:
+                break
+            alive &= (xs - xs[k]) ** 2 + (ys - ys[k]) ** 2 > (2 * r2) ** 2
     # direction into the finger: the mean offset of each tip's skin ring pixels (sums of small
     # integers: exact in any order)
-    ring_k = ring[sel]
-    d_all = (ring_k @ _ring_offsets_f(r2)) / ring_k.sum(axis=1)[:, None]
+    ring_k = ring[chosen]
+    d_all = ((ring_k @ _ring_offsets_f(r2)) / ring_k.sum(axis=1)[:, None]).tolist()
     tips = []
-    for j, k in enumerate(chosen):
+    for (dx, dy), k in zip(d_all, chosen):
         p = np.array([xs[k], ys[k]], dtype=np.float64)
-        d = d_all[j]
-        nd = np.hypot(*d)
-        d = d / nd if nd > 0 else np.array([0.0, 1.0])
+        nd = math.hypot(dx, dy)
+        d = np.array([dx / nd, dy / nd]) if nd > 0 else np.array([0.0, 1.0])
         tips.append(Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r),
                               score=float(score if scores is None else score[k]),
                               n_candidates=int(xs.size), extremity_px=0.0 if ext is None else float(ext[k])))
