@@ -158,3 +158,37 @@ def test_binary_median_is_opencvs_median_of_a_mask(k):
     m = (cv2.GaussianBlur(rng.random((61, 83)).astype(np.float32), (0, 0), 3) > 0.5).astype(np.uint8) * 255
     m[rng.random(m.shape) < 0.05] ^= 255  # speckle, and skin on the border
     assert np.array_equal(binary_median(m, k), cv2.medianBlur(m, k))
+
+
+@pytest.mark.parametrize("k", [3, 5, 7, 9])
+def test_median_in_place_of_a_view_is_opencvs_median(k):
+    """The segmentation's median writes into a box of the mask (a view): the same pixels as
+    medianBlur of that box, nothing outside it touched."""
+    import cv2
+
+    from vishap.vision.segment import _median_in_place
+
+    rng = np.random.default_rng(10 + k)
+    m = (cv2.GaussianBlur(rng.random((70, 90)).astype(np.float32), (0, 0), 3) > 0.5).astype(np.uint8) * 255
+    m[rng.random(m.shape) < 0.05] ^= 255
+    box = (slice(5, 61), slice(7, 80))
+    want = m.copy()
+    want[box] = cv2.medianBlur(np.ascontiguousarray(m[box]), k)
+    _median_in_place(m[box], k)
+    assert np.array_equal(m, want)
+
+
+def test_coarse_samples_are_the_strided_pixels():
+    """The coarse pass samples a region by a nearest-neighbour resize where its size is a multiple
+    of the step: exactly the pixels of the strided slice."""
+    import cv2
+
+    rng = np.random.default_rng(4)
+    img = rng.integers(0, 256, (480, 640, 3), dtype=np.uint8)
+    for k in (2, 3, 4, 5):
+        for x0, y0, w, h in ((0, 0, 640, 480), (35, 20, 300, 240), (5, 10, 60 * k, 45 * k)):
+            sub = img[y0:y0 + h, x0:x0 + w]
+            if w % k or h % k:
+                continue
+            got = cv2.resize(sub, (w // k, h // k), interpolation=cv2.INTER_NEAREST)
+            assert np.array_equal(got, sub[::k, ::k]), (k, x0, y0, w, h)

@@ -9,7 +9,9 @@ would pick instead, on the same labelled frames.
 * 3-D tip: the masks' cap fits, the side-edge axis, the disparity filter, and refinements on the
   images (sub-pixel edges per view or jointly, ZNCC along the rectified row), with the error decomposed by depth
   (``vision_stereo_refinement.png``);
-* Kalman: this filter against ``cv2.KalmanFilter`` and filterpy on the same measurements.
+* Kalman: this filter against ``cv2.KalmanFilter`` and filterpy on the same measurements;
+* speed: CPU time per stereo pair of the pipeline by mode (full-frame search, tracked window,
+  recheck), against the goals of ≤ 4 ms per full-frame and ≤ 1 ms per tracked pair at 640×480.
 
 Data: ``--data DIR...`` (folders written by ``vishap synth``); default a 70-frame wall sequence
 rendered on the fly (seed 101), or the analytic toy scene where the renderer is unavailable.
@@ -136,6 +138,48 @@ def _bench_pipeline(folder, n, skin):
         out[name] = {k: r[k] for k in ("ms_per_pair", "ms_per_pair_tracked", "ms_per_pair_full", "tip2d_rms_px",
                                        "tip3d_rms_mm", "tip3d_median_mm", "detection_rate", "false_detections",
                                        "track_losses", "visible_frames")}
+    return out
+
+
+SPEED_GOALS_MS = {"full frame": 4.0, "tracked": 1.0}  # issue 14 item 9, per 640×480 stereo pair
+
+
+def _bench_speed(seq, frames, skin, learn: int, rounds: int) -> dict:
+    """CPU time per stereo pair (``time.process_time``: what the pipeline costs this process, not
+    the waits a shared machine adds to the wall clock), median over frames of each kind and over
+    ``rounds`` passes, each pass a fresh pipeline: full-frame search every frame (``tracking=False``;
+    all frames and those with the fingertip visible in both views), and the shipped tracking mode
+    by the left view's mode of each frame (tracked window, full frame without a track, recheck)."""
+    from vishap.vision.pipeline import PipelineConfig, VisionPipeline
+
+    gt = seq.gt
+    n = len(frames)
+    visible = (np.asarray(gt.get("tip_visible_left", np.ones(n, bool)))[:n].astype(bool)
+               & np.asarray(gt.get("tip_visible_right", np.ones(n, bool)))[:n].astype(bool))
+    out = {"clock": "process_time", "rounds": rounds, "image_size": list(seq.rig.image_size), "goals_ms": SPEED_GOALS_MS,
+           "cpu_ms_per_pair": {}, "frames": {}}
+    for name, cfg in (("full frame", PipelineConfig(tracking=False, learn_frames=learn)),
+                      ("tracked", PipelineConfig(learn_frames=learn))):
+        per_round: dict[str, list] = {}
+        for _ in range(rounds):
+            pipe = VisionPipeline(seq.rig, skin_model=skin, config=cfg)
+            kinds: dict[str, list] = {}
+            for i, f in enumerate(frames):
+                c0 = time.process_time()
+                est = pipe.process(f)
+                ms = (time.process_time() - c0) * 1e3
+                if est.mode == "learning":
+                    continue
+                if name == "full frame":
+                    keys = ["full frame, all frames"] + (["full frame, fingertip visible"] if visible[i] else [])
+                else:
+                    keys = [f"tracking on: {est.mode}"]
+                for k in keys:
+                    kinds.setdefault(k, []).append(ms)
+            for k, v in kinds.items():
+                per_round.setdefault(k, []).append(float(np.median(v)))
+                out["frames"][k] = len(v)
+        out["cpu_ms_per_pair"] |= {k: float(np.median(v)) for k, v in per_round.items()}
     return out
 
 
@@ -395,20 +439,21 @@ def run(args: argparse.Namespace) -> dict:
         from vishap._core.results import progress
 
         folders = [Path(d) for d in args.data] if args.data else _default_data(Path(tmp))
-        bar = progress(total=5 * len(folders), desc="bench vision", unit="stage", quiet=getattr(args, "quiet", False))
+        bar = progress(total=6 * len(folders), desc="bench vision", unit="stage", quiet=getattr(args, "quiet", False))
         for folder in folders:
             seq, frames = _load(folder, args.frames)
             learn = int(seq.gt.get("hand_free_frames", 10))
             if len(frames) < learn + 5:
                 record["sequences"][folder.name] = {"skipped": f"{len(frames)} frames: fewer than {learn} background + 5"}
-                bar.update(5)
+                bar.update(6)
                 continue
             rec = {"frames": len(frames), "skin_model": skin.source}
             for stage, measure in (("pipeline", lambda: _bench_pipeline(folder, args.frames, skin)),
                                    ("refinement", lambda: _bench_refinement(folder, args.frames, skin, args.quick)),
                                    ("segmentation", lambda: _bench_segmentation(frames, learn, skin, args.quick)),
                                    ("stereo", lambda: _bench_stereo(seq, frames, skin, learn)),
-                                   ("kalman", lambda: _bench_kalman(seq.gt, rng))):
+                                   ("kalman", lambda: _bench_kalman(seq.gt, rng)),
+                                   ("speed", lambda: _bench_speed(seq, frames, skin, learn, 1 if args.quick else 3))):
                 bar.set_postfix_str(f"{folder.name}: {stage}")
                 rec[stage] = measure()
                 bar.update(1)

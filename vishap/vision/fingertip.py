@@ -25,6 +25,7 @@ which is what stereo triangulates.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -72,6 +73,18 @@ def square_ring_offsets(r2: int) -> np.ndarray:
 
 
 @lru_cache(maxsize=64)
+def _ring_offsets_f(r2: int) -> np.ndarray:
+    return square_ring_offsets(r2).astype(np.float64)
+
+
+@lru_cache(maxsize=256)
+def _flat_offsets(r2: int, width: int) -> np.ndarray:
+    """:func:`square_ring_offsets` as offsets into a flattened mask ``width`` pixels wide."""
+    off = square_ring_offsets(r2)
+    return off[:, 1] * width + off[:, 0]
+
+
+@lru_cache(maxsize=64)
 def _rect(r2: int) -> np.ndarray:
     return np.ones((2 * r2 + 1, 2 * r2 + 1), np.uint8)
 
@@ -80,6 +93,11 @@ def _rect(r2: int) -> np.ndarray:
 def _disk(r: int) -> np.ndarray:
     yy, xx = np.mgrid[-r: r + 1, -r: r + 1]
     return ((xx * xx + yy * yy) <= r * r + 1e-9).astype(np.uint8)
+
+
+@lru_cache(maxsize=64)
+def _disk_area(r: int) -> int:
+    return int(_disk(r).sum())
 
 
 def detect_fingertip(mask: np.ndarray, r: float, config: FingertipConfig = FingertipConfig(),
@@ -100,21 +118,27 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
     ri = max(1, int(round(r)))
     r2 = max(ri + 1, int(round(r + config.delta_r_frac * r)))
     disk = _disk(ri)
-    area = int(disk.sum())
+    area = _disk_area(ri)
     bx, by, bw, bh = cv2.boundingRect(mask)
     if bw == 0:
         return []
+    x0 = y0 = 0
     if bw * bh < mask.size // 2:  # work on the mask's bounding box (plus a margin) only
         x0, y0 = max(0, bx - r2), max(0, by - r2)
         x1, y1 = min(mask.shape[1], bx + bw + r2), min(mask.shape[0], by + bh + r2)
         if (x0, y0) != (0, 0) or (x1, y1) != mask.shape[::-1]:
-            prior = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64) - (x0, y0)
-            tips = detect_fingertips(np.ascontiguousarray(mask[y0:y1, x0:x1]), r, config, prior_uv=prior,
-                                     max_tips=max_tips)
-            for tip in tips:
-                tip.uv = tip.uv + (x0, y0)
-                tip.uv_pixel = tip.uv_pixel + (x0, y0)
-            return tips
+            mask = np.ascontiguousarray(mask[y0:y1, x0:x1])
+            prior_uv = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64) - (x0, y0)
+    tips = _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area)
+    if x0 or y0:
+        for tip in tips:
+            tip.uv = tip.uv + (x0, y0)
+            tip.uv_pixel = tip.uv_pixel + (x0, y0)
+    return tips
+
+
+def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fingertip]:
+    """:func:`detect_fingertips` on a mask cropped to its skin (plus ``r2``), in its coordinates."""
     h, w = mask.shape
     if h < 2 * r2 + 1 or w < 2 * r2 + 1:
         return []
@@ -144,63 +168,76 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
     # steps 6–9 on the square ring
     off = square_ring_offsets(r2)
     n_half = 4 * r2
+    flat, off_flat = mask.ravel(), _flat_offsets(r2, w)  # candidates lie r2 inside the mask
 
     def ring_test(xs, ys):
-        ring = mask[ys[:, None] + off[None, :, 1], xs[:, None] + off[None, :, 0]] > 0  # (M, 8 r2)
+        ring = flat[(ys * w + xs)[:, None] + off_flat] > 0  # (M, 8 r2)
         s_square = ring.sum(axis=1)
         n_diag = (ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
         keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2) \
             & (n_diag <= config.max_diagonal_pairs)
-        return xs[keep], ys[keep], ring[keep]
+        return xs[keep], ys[keep], ring[keep], keep
 
+    ref = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64)
+    tie = None
     if prior_uv is not None and max_tips == 1 and scores is None and xs.size > 48:
         # equal scores: the winner is the valid candidate nearest the prior, so test candidates in
         # order of distance, a chunk at a time, and stop at the first chunk holding a valid one
-        order = np.argsort((xs - prior_uv[0]) ** 2 + (ys - prior_uv[1]) ** 2, kind="stable")
+        d2 = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
+        order = np.argsort(d2, kind="stable")
         for k in range(0, order.size, 32):
             sel = order[k: k + 32]
-            cx, cy, cring = ring_test(xs[sel], ys[sel])
+            cx, cy, cring, keep = ring_test(xs[sel], ys[sel])
             if cx.size:
                 break
-        xs, ys, ring = cx, cy, cring
+        xs, ys, ring, tie = cx, cy, cring, d2[sel][keep]  # (the distances of step 10, already known)
     else:
         if xs.size > _PREFILTER_MIN:  # many candidates (full frame): S_square of all from an integral image first
             ii = cv2.integral(cv2.threshold(mask, 0, 1, cv2.THRESH_BINARY)[1])
             s_square = _box_sum(ii, xs, ys, r2) - _box_sum(ii, xs, ys, r2 - 1)
             keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2)
             xs, ys = xs[keep], ys[keep]
-        xs, ys, ring = ring_test(xs, ys)
+        xs, ys, ring, _ = ring_test(xs, ys)
     if xs.size == 0:
         return []
-    score = np.full(xs.size, float(area)) if scores is None else scores[ys, xs].astype(np.float64)
+    score = float(area) if scores is None else scores[ys, xs].astype(np.float64)  # (scalar: all equal)
     # step 10: best score first; ties broken by the prior or by extremity
     if prior_uv is not None:
-        ref = np.asarray(prior_uv, dtype=np.float64)
-        tie = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
-        ext = np.zeros(xs.size)
+        if tie is None:
+            tie = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
+        ext = None                  # (extremity not measured: 0)
     else:
         m = cv2.moments(mask, binaryImage=True)
         centroid = np.array([m["m10"], m["m01"]]) / max(m["m00"], 1.0)
         ext = np.hypot(xs - centroid[0], ys - centroid[1])
         tie = -ext
-    order = [int(np.argmin(tie - 1e9 * score))] if max_tips == 1 else np.lexsort((tie, -score))
-    alive = np.ones(xs.size, bool)
+    if max_tips == 1:
+        chosen = [int(np.argmin(tie - 1e9 * score))]
+    else:
+        order = np.lexsort((tie, -score)) if scores is not None else np.argsort(tie, kind="stable")
+        alive = np.ones(xs.size, bool)
+        chosen = []
+        for k in order.tolist():
+            if not alive[k]:
+                continue
+            chosen.append(k)
+            if len(chosen) >= max_tips:
+                break
+            alive &= (xs - xs[k]) ** 2 + (ys - ys[k]) ** 2 > (2 * r2) ** 2
+    # direction into the finger: the mean offset of each tip's skin ring pixels (sums of small
+    # integers: exact in any order)
+    ring_k = ring[chosen]
+    d_all = ((ring_k @ _ring_offsets_f(r2)) / ring_k.sum(axis=1)[:, None]).tolist()
     tips = []
-    for k in order:
-        if not alive[k]:
-            continue
+    for (dx, dy), k in zip(d_all, chosen):
         p = np.array([xs[k], ys[k]], dtype=np.float64)
-        d = (off[ring[k]].astype(np.float64)).mean(axis=0)
-        nd = np.hypot(*d)
-        d = d / nd if nd > 0 else np.array([0.0, 1.0])
-        tip = Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r), score=float(score[k]),
-                        n_candidates=int(xs.size), extremity_px=float(ext[k]))
-        if config.refine:
-            _refine(mask, tip, r2)
-        tips.append(tip)
-        if len(tips) >= max_tips:
-            break
-        alive &= (xs - xs[k]) ** 2 + (ys - ys[k]) ** 2 > (2 * r2) ** 2
+        nd = math.hypot(dx, dy)
+        d = np.array([dx / nd, dy / nd]) if nd > 0 else np.array([0.0, 1.0])
+        tips.append(Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r),
+                              score=float(score if scores is None else score[k]),
+                              n_candidates=int(xs.size), extremity_px=0.0 if ext is None else float(ext[k])))
+    if config.refine:
+        _refine_all(mask, tips, r2)
     return tips
 
 
@@ -208,9 +245,14 @@ _PREFILTER_MIN = 256  # candidates above which S_square comes from an integral i
 
 
 def _box_sum(ii: np.ndarray, xs: np.ndarray, ys: np.ndarray, h: int) -> np.ndarray:
-    """Sums over the squares of half-side ``h`` centred at (xs, ys), from the integral image ``ii``."""
-    y0, y1, x0, x1 = ys - h, ys + h + 1, xs - h, xs + h + 1
-    return ii[y1, x1] - ii[y0, x1] - ii[y1, x0] + ii[y0, x0]
+    """Sums over the squares of half-side ``h`` centred at (xs, ys), from the integral image ``ii``
+    (its four corners taken by flat index: one index computation instead of four)."""
+    w = ii.shape[1]
+    flat = ii.ravel()
+    top_left = (ys - h) * w + (xs - h)
+    side = 2 * h + 1
+    return (flat[top_left + (side * w + side)] - flat[top_left + side * w] - flat[top_left + side]
+            + flat[top_left])
 
 
 def fit_circle(pts: np.ndarray) -> tuple[np.ndarray, float] | None:
@@ -219,70 +261,170 @@ def fit_circle(pts: np.ndarray) -> tuple[np.ndarray, float] | None:
     if n < 5:
         return None
     m = pts.sum(axis=0) / n
-    q = pts - m
+    q = pts - m  # centred: the sums stay small
     u, v = q[:, 0], q[:, 1]
-    b = u * u + v * v
-    # normal equations of [u v 1]·[a b c] = u²+v²: the 1-column decouples (Σu = Σv = 0)
-    suu, suv, svv = u @ u, u @ v, v @ v
-    det = suu * svv - suv * suv
-    if not det > 1e-12 * max(suu * svv, 1e-300):
-        return None
-    bu, bv = u @ b, v @ b
-    sol = np.array([(svv * bu - suv * bv) / det, (suu * bv - suv * bu) / det, b.sum() / n])
-    c = sol[:2] / 2
-    rad2 = sol[2] + c @ c
-    if not np.isfinite(rad2) or rad2 <= 0:
-        return None
-    return c + m, float(np.sqrt(rad2))
+    uu, vv = u * u, v * v
+    fit = _kasa(n, u.sum(), v.sum(), uu.sum(), u @ v, vv.sum(), uu @ u, uu @ v, vv @ u, vv @ v)
+    return None if fit is None else (np.array(fit[:2]) + m, fit[2])
 
 
 def _edge_points(win: np.ndarray) -> np.ndarray:
-    """Midpoints between horizontally/vertically adjacent pixels of different value (x, y)."""
+    """Midpoints between horizontally/vertically adjacent pixels of different value (x, y): the
+    mask's edge crossings (the side-edge axis of vision/axis_disparity.py fits lines to them)."""
     b = win > 0
     hy, hx = np.nonzero(b[:, 1:] != b[:, :-1])
     vy, vx = np.nonzero(b[1:, :] != b[:-1, :])
     return np.concatenate([np.column_stack([hx + 0.5, hy]), np.column_stack([vx, vy + 0.5])]).astype(np.float64)
 
 
-def _refine(mask: np.ndarray, tip: Fingertip, r2: int) -> None:
+@lru_cache(maxsize=64)
+def _edge_grid(half: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where the mask's edge crossings of a (2·half+1)² window centred on a pixel can lie, relative
+    to that pixel: the midpoints between horizontally, then vertically adjacent pixels (each in
+    row-major order), as ``(N, 2)`` offsets, the moments ``[1, u, v, u², uv, v², u³, u²v, uv², v³]``
+    of each ``(N, 10)`` and ``u² + v²`` ``(N,)``. Every offset is a multiple of 0.5, so these values
+    and weighted sums of the moments over any set of the points are exact (the circle fit's sums do
+    not depend on the order of the points)."""
+    a = np.arange(-half, half + 1, dtype=np.float64)
+    hv, hu = np.meshgrid(a, a[:-1] + 0.5, indexing="ij")     # (W, W−1): between columns
+    vv, vu = np.meshgrid(a[:-1] + 0.5, a, indexing="ij")     # (W−1, W): between rows
+    u = np.concatenate([hu.ravel(), vu.ravel()])
+    v = np.concatenate([hv.ravel(), vv.ravel()])
+    mom = np.column_stack([np.ones_like(u), u, v, u * u, u * v, v * v, u ** 3, u * u * v, u * v * v, v ** 3])
+    return np.column_stack([u, v]), mom, u * u + v * v
+
+
+def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
+    """Sub-pixel cap circles of the chosen candidates, all at once. Per candidate: the mask's edge
+    crossings in a window of half-side ``r2 + 4`` around its pixel, the finger's direction
+    (:func:`_finger_directions`), then twice a circle through the crossings in front of the
+    current centre (within ``r2 + 2.5`` of it). Each round fits every candidate from one product of
+    the selected crossings with their moments (:func:`_kasa`). A candidate whose fit fails, moves
+    its centre over ``r2 + 1`` px or grows over ``2·r2 + 2`` px keeps its pixel."""
     h, w = mask.shape
     half = r2 + 4
-    x0, y0 = int(max(0, tip.uv_pixel[0] - half)), int(max(0, tip.uv_pixel[1] - half))
-    x1, y1 = int(min(w, tip.uv_pixel[0] + half + 1)), int(min(h, tip.uv_pixel[1] + half + 1))
-    pts = _edge_points(mask[y0:y1, x0:x1]) + (x0, y0)
-    if len(pts) < 5:
-        return
-    c = tip.uv_pixel.astype(np.float64)
-    d = _finger_direction(mask, c, r2 + 2.0, tip.direction)
-    for _ in range(2):
-        rel = pts - c
-        dist = np.hypot(rel[:, 0], rel[:, 1])
-        sel = (rel @ d <= 0.0) & (dist <= r2 + 2.5)  # the cap: in front of the centre
-        fit = fit_circle(pts[sel])
-        if fit is None:
-            return
-        c_new, rad = fit
-        if np.hypot(*(c_new - tip.uv_pixel)) > r2 + 1 or rad > 2 * r2 + 2:
-            return
-        c = c_new
-    tip.uv = c
-    tip.direction = d
-    tip.cap_radius_px = rad
+    grid, mom, grid_r2 = _edge_grid(half)
+    K = len(tips)
+    corners = [(int(t.uv_pixel[0]), int(t.uv_pixel[1])) for t in tips]  # whole pixels
+    inside = all(half <= x < w - half and half <= y < h - half for x, y in corners)
+    if inside and K == 1:  # the tracked case: one window, a slice
+        x, y = corners[0]
+        win = mask[y - half: y + half + 1, x - half: x + half + 1] > 0
+        nn = np.flatnonzero(np.concatenate([(win[:, 1:] != win[:, :-1]).ravel(), (win[1:] != win[:-1]).ravel()]))
+        kk = None
+    else:
+        pi = np.array(corners, dtype=np.intp)
+        a = np.arange(-half, half + 1)
+        X, Y = pi[:, :1] + a, pi[:, 1:] + a                              # (K, W) image columns / rows
+        if inside:
+            win = mask[Y[:, :, None], X[:, None, :]] > 0                 # (K, W, W)
+        else:  # a window cut by the mask's border: crossings only between two pixels of the mask
+            win = mask[np.clip(Y, 0, h - 1)[:, :, None], np.clip(X, 0, w - 1)[:, None, :]] > 0
+            ok = ((Y >= 0) & (Y < h))[:, :, None] & ((X >= 0) & (X < w))[:, None, :]
+        eh = win[:, :, 1:] != win[:, :, :-1]
+        ev = win[:, 1:, :] != win[:, :-1, :]
+        if not inside:
+            eh &= ok[:, :, 1:] & ok[:, :, :-1]
+            ev &= ok[:, 1:, :] & ok[:, :-1, :]
+        kk, nn = np.nonzero(np.concatenate([eh.reshape(K, -1), ev.reshape(K, -1)], axis=1))
+    g, m = grid[nn], mom[nn]                                             # the crossings, by candidate
+    D = _finger_directions(mask, corners, r2 + 2, [t.direction for t in tips], inside=inside)
+    if K > 1:
+        Dk = D[kk]
+        split = (kk == np.arange(K)[:, None]).astype(np.float64)        # (K, M): which crossings are whose
+    C = np.zeros((K, 2))                                                 # centres, relative to the pixels
+    alive = [True] * K
+    radius = [0.0] * K
+    reach2 = (r2 + 2.5) ** 2
+    for it in range(2):
+        if K > 1:
+            rel = g - C[kk]
+            sel = ((rel * Dk) @ _ONES2 <= 0.0) & ((rel * rel) @ _ONES2 <= reach2)  # the cap
+            S = (split * sel) @ m
+        elif it == 0:  # centred on the pixel: the grid's own offsets
+            sel = (g @ D[0] <= 0.0) & (grid_r2[nn] <= reach2)
+            S = (sel @ m)[None]
+        else:
+            rel = g - C[0]
+            sel = (rel @ D[0] <= 0.0) & ((rel * rel) @ _ONES2 <= reach2)
+            S = (sel @ m)[None]
+        for k, sums in enumerate(S.tolist()):
+            if not alive[k]:
+                continue
+            fit = _kasa(*sums)
+            if fit is None or math.hypot(fit[0], fit[1]) > r2 + 1 or fit[2] > 2 * r2 + 2:
+                alive[k] = False
+                continue
+            C[k] = fit[:2]
+            radius[k] = fit[2]
+    for k, tip in enumerate(tips):
+        if alive[k]:
+            tip.uv = tip.uv_pixel + C[k]
+            tip.direction = D[k]
+            tip.cap_radius_px = radius[k]
 
 
+def _kasa(n, su, sv, suu, suv, svv, suuu, suuv, suvv, svvv):
+    """The Kåsa circle ``(cx, cy, radius)`` of points given by their sums (as :func:`fit_circle`: on
+    the points centred at their mean; None with fewer than 5 points, an ill-conditioned system or no
+    positive radius). Plain floats: a handful of candidates is faster so than as arrays."""
+    if n < 5:
+        return None
+    mx, my = su / n, sv / n
+    cuu = suu - su * mx                                 # centred second moments
+    cuv = suv - su * my
+    cvv = svv - sv * my
+    det = cuu * cvv - cuv * cuv
+    if not det > 1e-12 * max(cuu * cvv, 1e-300):
+        return None
+    # Σ u'(u'² + v'²) and Σ v'(u'² + v'²) of the centred points u' = u − mx, v' = v − my
+    bu = (suuu - 3 * mx * suu + 2 * n * mx ** 3) + (suvv - 2 * my * suv - mx * svv + 2 * n * mx * my * my)
+    bv = (svvv - 3 * my * svv + 2 * n * my ** 3) + (suuv - 2 * mx * suv - my * suu + 2 * n * mx * mx * my)
+    cx = (cvv * bu - cuv * bv) / det / 2
+    cy = (cuu * bv - cuv * bu) / det / 2
+    rad2 = (cuu + cvv) / n + cx * cx + cy * cy
+    if not (math.isfinite(rad2) and rad2 > 0):
+        return None
+    return cx + mx, cy + my, math.sqrt(rad2)
+
+
+_ONES2 = np.ones(2)  # row sums of (N, 2) products by one small matrix product
 _ANGLES = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
 _UNIT = np.column_stack([np.cos(_ANGLES), np.sin(_ANGLES)])
 
 
-def _finger_direction(mask: np.ndarray, c: np.ndarray, rho: float, fallback: np.ndarray) -> np.ndarray:
-    """Unit vector from ``c`` into the finger: mean direction of the skin samples on a circle."""
+@lru_cache(maxsize=64)
+def _circle_offsets(rho: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Integer offsets (dx, dy) of the 64 samples on a circle of radius ``rho`` around a pixel:
+    ``rint(p + rho·unit) = p + rint(rho·unit)`` for a whole pixel p unless a sample lies half-way
+    between pixels (None then; no radius up to 200 px has one)."""
+    x = rho * _UNIT
+    if np.any(np.abs(np.abs(x - np.floor(x)) - 0.5) < 1e-6):
+        return None
+    q = np.rint(x).astype(np.intp)
+    return q[:, 0].copy(), q[:, 1].copy()
+
+
+def _finger_directions(mask: np.ndarray, corners, rho: int, fallback, *, inside: bool = False) -> np.ndarray:
+    """Unit vectors from the whole pixels ``corners`` [(x, y), ...] into the finger: the mean
+    direction of the skin samples on a circle of radius ``rho`` around each (``fallback[k]`` where
+    none is skin); ``inside``: the caller knows every circle lies within the mask."""
     h, w = mask.shape
-    q = np.rint(c + rho * _UNIT).astype(np.intp)
-    ok = (q[:, 0] >= 0) & (q[:, 0] < w) & (q[:, 1] >= 0) & (q[:, 1] < h)
-    skin = np.zeros(len(q), bool)
-    skin[ok] = mask[q[ok, 1], q[ok, 0]] > 0
-    if not skin.any():
-        return fallback
-    d = _UNIT[skin].sum(axis=0)
-    n = np.hypot(*d)
-    return d / n if n > 0 else fallback
+    circle = _circle_offsets(rho) if inside else None
+    if circle is not None and len(corners) == 1:
+        x, y = corners[0]
+        skin = (mask[y + circle[1], x + circle[0]] > 0)[None]
+    elif circle is not None:
+        P = np.array(corners, dtype=np.intp)
+        skin = mask[P[:, 1:] + circle[1], P[:, :1] + circle[0]] > 0     # (K, 64)
+    else:
+        q = np.rint(np.array(corners, dtype=np.float64)[:, None, :] + rho * _UNIT).astype(np.intp)  # (K, 64, 2)
+        qx, qy = q[..., 0], q[..., 1]
+        ok = (qx >= 0) & (qx < w) & (qy >= 0) & (qy < h)
+        skin = np.zeros(ok.shape, bool)
+        skin[ok] = mask[qy[ok], qx[ok]] > 0
+    D = skin @ _UNIT
+    for k, (dx, dy) in enumerate(D.tolist()):
+        n = math.hypot(dx, dy)
+        D[k] = (dx / n, dy / n) if n > 0 else fallback[k]
+    return D

@@ -11,6 +11,7 @@ explicitly with :meth:`VisionPipeline.learn_background`.
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field, replace
 
@@ -195,7 +196,7 @@ class VisionPipeline:
         cands, modes = {}, {}
         self._window_tips = set()
         self._refine_ms = 0.0
-        self._skin_px = {}
+        self._skin_px = {}                  # each view's searched mask (its skin is counted only when needed)
         self._masks = {}                    # per view: the skin mask the candidates came from, its origin
         for side, img in (("left", frame.left), ("right", frame.right)):
             cands[side], modes[side] = self._detect(side, img, t, timings)
@@ -247,7 +248,9 @@ class VisionPipeline:
             return True
         r = self.K / (self._z if self._z is not None else self.config.z_default_m)
         cap_px = np.pi * r * r
-        return all(self._skin_px.get(s, 0) < 0.5 * cap_px for s in ("left", "right"))
+        # the masks' skin is counted here only: most frames find a fingertip and never ask
+        return all((int(np.count_nonzero(self._skin_px[s])) if s in self._skin_px else 0) < 0.5 * cap_px
+                   for s in ("left", "right"))
 
     def _filter_disparity(self, spf: StereoPoint, disparity_px: float, t: float) -> StereoPoint:
         """The filtered pair ``spf`` with its disparity replaced by a constant-velocity Kalman
@@ -275,7 +278,7 @@ class VisionPipeline:
         # rectified with zero disparity at infinity (Q[3, 3] = 0): the point scales with 1/disparity
         # along its ray, so the pair's point is moved, not triangulated again
         scale = spf.disparity_px / d
-        return replace(spf, p_cam=spf.p_cam * scale, cov_cam=spf.cov_cam * scale ** 2, disparity_px=d)
+        return StereoPoint(spf.ok, spf.p_cam * scale, spf.cov_cam * scale ** 2, d, spf.epipolar_px, spf.reason)
 
     def _refine_pair(self, images, tl, tr, sp):
         """The chosen pair's cap centres refined (stereo.refine_tip_pair, on the images or the views'
@@ -306,8 +309,22 @@ class VisionPipeline:
         rejected = []  # (rank sum, reason)
         rect = {s: self.rig.rectify_points(np.array([tp.uv for tp in cands[s]], dtype=np.float64), s)
                 for s in ("left", "right") if cands[s]}  # each candidate rectified once
+        if L and R and len(L) * len(R) > 1:
+            # pairs off each other's epipolar line by more than the widest check of _match (the
+            # occluded-pair one: max_epipolar_px plus the larger cap radius) fail it there with
+            # this reason: say so without the checks
+            epi = np.abs(rect["left"][:, 1][:, None] - rect["right"][:, 1][None, :])
+            slack = (np.maximum.outer([tp.cap_radius_px for tp in L], [tp.cap_radius_px for tp in R])
+                     if self.config.occluded_pairs else 0.0)
+            far = epi > self.config.stereo.max_epipolar_px + slack
+        else:
+            far = None
         for il, tl0 in enumerate(L):
             for ir, tr0 in enumerate(R):
+                if far is not None and far[il, ir]:
+                    rejected.append((il + ir, f"epipolar error {epi[il, ir]:.2f} px (candidates {il + 1} of {len(L)} "
+                                              f"left, {ir + 1} of {len(R)} right)"))
+                    continue
                 tl, tr, sp, why = self._match(tl0, tr0, modes, t, rect["left"][il], rect["right"][ir])
                 if why:
                     which = f" (candidates {il + 1} of {len(L)} left, {ir + 1} of {len(R)} right)" if len(L) * len(R) > 1 else ""
@@ -503,16 +520,24 @@ class VisionPipeline:
             roi = (0, 0, self._size[0], self._size[1])
         roi = snap_roi(roi, seg.config.tile, self._size)
         ts = time.perf_counter()
-        mask = seg.segment(image, roi)
-        self._skin_px[side] = int(np.count_nonzero(mask))
+        # the mask only where it can hold skin, widened by the largest square ring searched (a
+        # full frame: the same candidates without allocating and scanning all of it)
+        pad = math.ceil((1 + cfg.fingertip.delta_r_frac) * self.K / min(z, *cfg.z_search_m)) + 2
+        if hasattr(seg, "segment_region"):
+            mask, org = seg.segment_region(image, roi, pad=pad)
+        else:  # a segmenter with the plain interface (learn, segment): the whole region
+            mask, org = seg.segment(image, roi), roi[:2]
+        self._skin_px[side] = mask  # counted by _finger_gone, when a frame finds no fingertip
         td = time.perf_counter()
-        prior = None if pred is None or mode == "recheck" else pred - roi[:2]
+        prior = None if pred is None or mode == "recheck" else pred - org
         n_max = 1 if mode == "tracked" else cfg.max_candidates
         if mode != "full" or self._z is not None:
             tips = detect_fingertips(mask, self.K / z, cfg.fingertip, prior_uv=prior, max_tips=n_max)
         else:  # first acquisition, depth unknown: candidates at each depth of the working range
             tips = search_tips(mask, [self.K / zz for zz in (z, *cfg.z_search_m)], cfg.fingertip, prior_uv=prior,
                                max_tips=n_max)
+        for tip in tips:  # image pixels from here on
+            tip.uv = tip.uv + org
         if window is not None and tips:
             tips = self._keep_track_measurement(tips, image, seg, window, pred, z)
         if not tips and mode == "tracked" and cfg.full_search_on_miss:
@@ -526,11 +551,9 @@ class VisionPipeline:
             gate = 2 * r * (1 + cfg.fingertip.delta_r_frac) + cfg.max_speed_m_s * (since + 1 / 30) * self.rig.fx_px / z
             tips = [tp for tp in tips if np.hypot(*(tp.uv - pred)) <= gate]
             if tips:
-                roi, mode, mask = full, "recheck", m_full
+                mode, mask, org = "recheck", m_full, full[:2]
         te = time.perf_counter()
         timings[f"segment_{side}_ms"] = timings.get(f"segment_{side}_ms", 0.0) + (td - ts) * 1e3
         timings[f"detect_{side}_ms"] = timings.get(f"detect_{side}_ms", 0.0) + (te - td) * 1e3
-        for tip in tips:
-            tip.uv = tip.uv + roi[:2]
-        self._masks[side] = (mask, roi[:2])
+        self._masks[side] = (mask, org)
         return tips, mode

@@ -17,6 +17,7 @@ run in the tiles next to a foreground tile (a finger edge covering few pixels of
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -78,17 +79,24 @@ def _sat_lut(cfg: SegmentConfig) -> np.ndarray:
     return np.minimum(s * cfg.sat_bins // max(1, 256 - cfg.min_saturation), cfg.sat_bins - 1).astype(np.uint8)
 
 
-def hue_bin_image(hsv: np.ndarray, cfg: SegmentConfig, lut: np.ndarray | None = None) -> np.ndarray:
+def hue_bin_image(hsv: np.ndarray, cfg: SegmentConfig, lut: np.ndarray | None = None, *,
+                  hue: np.ndarray | None = None, chroma: np.ndarray | None = None) -> np.ndarray:
     """Per-pixel histogram bin (uint8): chromatic bins ``0…bins·sat_bins−1``, then one bin for
-    achromatic pixels (when ``achromatic_bin``)."""
+    achromatic pixels (when ``achromatic_bin``). ``hue``, ``chroma``: the image's hue channel and
+    its achromatic gate (``inRange`` of ``min_saturation``/``min_value``), if the caller has them."""
     lut = _bin_lut(cfg.bins, cfg.sat_bins) if lut is None else lut
-    b = cv2.LUT(np.ascontiguousarray(hsv[..., 0]), lut)
+    b = cv2.LUT(np.ascontiguousarray(hsv[..., 0]) if hue is None else hue, lut)
     if cfg.sat_bins > 1:
         b = cv2.add(b, cv2.LUT(np.ascontiguousarray(hsv[..., 1]), _sat_lut(cfg)))
     if cfg.achromatic_bin:
-        chroma = cv2.inRange(hsv, (0, cfg.min_saturation, cfg.min_value), (255, 255, 255))
+        if chroma is None:
+            chroma = cv2.inRange(hsv, (0, cfg.min_saturation, cfg.min_value), (255, 255, 255))
         b = cv2.min(cv2.max(b, cv2.bitwise_not(chroma)), cfg.bins * cfg.sat_bins)
     return b
+
+
+_DENSE_MAX_TILES = 400  # regions of at most this many tiles get every tile's histogram (the same mask as
+#   the sparse choice of tiles, in fewer, cheaper calls: the tile gather pays off on large regions only)
 
 
 def _n_bins(cfg: SegmentConfig) -> int:
@@ -96,27 +104,32 @@ def _n_bins(cfg: SegmentConfig) -> int:
 
 
 class _TileIndex:
-    """Cached ``tile_index * n_bins`` images for a given region shape."""
+    """``tile_index * n_bins`` of a region's pixels as a row and a column term (cached per size;
+    their sum is the index image)."""
 
     def __init__(self, tile: int, nb: int):
-        self.tile, self.nb, self._cache = tile, nb, {}
+        self.tile, self.nb = tile, nb
+        self._rows: dict = {}
+        self._cols: dict = {}
 
-    def get(self, h: int, w: int) -> tuple[np.ndarray, int, int]:
-        key = (h, w)
-        if key not in self._cache:
-            ty, tx = -(-h // self.tile), -(-w // self.tile)
-            rows = (np.arange(h) // self.tile)[:, None] * tx
-            cols = (np.arange(w) // self.tile)[None, :]
-            base = ((rows + cols) * self.nb).astype(np.intp)
-            self._cache[key] = (base, ty, tx)
-        return self._cache[key]
+    def get(self, h: int, w: int) -> tuple[np.ndarray, np.ndarray, int, int]:
+        t = self.tile
+        ty, tx = -(-h // t), -(-w // t)
+        rows = self._rows.get((h, tx))
+        if rows is None:
+            rows = self._rows[(h, tx)] = ((np.arange(h) // t) * (tx * self.nb)).astype(np.intp)[:, None]
+        cols = self._cols.get(w)
+        if cols is None:
+            cols = self._cols[w] = ((np.arange(w) // t) * self.nb).astype(np.intp)
+        return rows, cols, ty, tx
 
 
 def tile_histograms(bin_image: np.ndarray, tile: int, n_bins: int, _index: _TileIndex | None = None) -> np.ndarray:
     """All tile histograms of a bin image: (tiles_y, tiles_x, n_bins) int64, from one bincount."""
     h, w = bin_image.shape
-    base, ty, tx = (_index or _TileIndex(tile, n_bins)).get(h, w)
-    idx = base + bin_image
+    rows, cols, ty, tx = (_index or _TileIndex(tile, n_bins)).get(h, w)
+    idx = cols + bin_image
+    idx += rows
     return np.bincount(idx.ravel(), minlength=ty * tx * n_bins).reshape(ty, tx, n_bins)
 
 
@@ -127,14 +140,28 @@ def histogram_intersection(I: np.ndarray, M: np.ndarray) -> np.ndarray:
     return np.where(den > 0, num / np.maximum(den, 1), 1.0)
 
 
+def _foreground_counts(background: np.ndarray, threshold: float) -> np.ndarray:
+    """Per model tile, the intersection count ``Σ min(I, M)`` below which a live tile is foreground:
+    eq. (1) ``count / Σ M < threshold`` turned into an integer bound, evaluated with the same float
+    division for every possible ``Σ M``, so the decision is exactly the one of
+    :func:`histogram_intersection` (an empty model tile, intersection 1, is never foreground)."""
+    den = background.sum(axis=-1)
+    top = int(den.max()) if den.size else 0
+    d = np.arange(top + 1)
+    below = (d[None, :] / np.maximum(d[:, None], 1) < threshold) & (d[None, :] <= d[:, None])
+    count = below.sum(axis=1)
+    count[0] = 0
+    return count[den]
+
+
 def snap_roi(roi, tile: int, size: tuple[int, int]) -> tuple[int, int, int, int]:
     """Clip ``(x0, y0, x1, y1)`` to the image and widen it to whole tiles."""
     w, h = size
-    x0, y0, x1, y1 = (int(np.floor(v)) for v in roi)
-    x0 = max(0, (x0 // tile) * tile)
-    y0 = max(0, (y0 // tile) * tile)
-    x1 = min(w, -(-x1 // tile) * tile)
-    y1 = min(h, -(-y1 // tile) * tile)
+    x0, y0, x1, y1 = roi
+    x0 = max(0, (math.floor(x0) // tile) * tile)
+    y0 = max(0, (math.floor(y0) // tile) * tile)
+    x1 = min(w, -(-math.floor(x1) // tile) * tile)
+    y1 = min(h, -(-math.floor(y1) // tile) * tile)
     return x0, y0, max(x0, x1), max(y0, y1)
 
 
@@ -161,7 +188,29 @@ class Segmenter:
         self._index = _TileIndex(c.tile, _n_bins(c))
         k = 2 * c.dilate_tiles + 1
         self._dilate_kernel = np.ones((k, k), np.uint8) if c.dilate_tiles > 0 else None
+        self._coarse_kernel = np.ones((2 * c.coarse_margin + 1,) * 2, np.uint8)
         self._tile_offsets: dict = {}
+        self._model_of = None  # the background array the derived model below was made from
+        self._hue_lut = getattr(self.skin, "hue_lut", None)  # a hue-interval skin test: one look-up
+        #   table, sharing the saturation/value gate with the tile histograms' achromatic bin
+
+    def _model(self) -> tuple[np.ndarray, np.ndarray]:
+        """The background as float32 histograms and its per-tile foreground counts
+        (:func:`_foreground_counts`), remade whenever ``background`` is replaced."""
+        if self._model_of is not self.background:
+            self._bg_f32 = self.background.astype(np.float32)
+            self._bg_count = _foreground_counts(self.background, self.config.match_threshold)
+            self._ones = np.ones(self.background.shape[-1], np.float32)
+            self._model_of = self.background
+        return self._bg_f32, self._bg_count
+
+    def _foreground(self, hist: np.ndarray, tiles) -> np.ndarray:
+        """Eq. (1) against the model tiles ``tiles`` (an index into the (tiles_y, tiles_x) grid):
+        True where a live histogram ``hist`` differs from the background (counts below 2**24 add up
+        exactly in float32)."""
+        M, count = self._model()
+        num = np.minimum(hist.astype(np.float32), M[tiles]) @ self._ones
+        return num < count[tiles]
 
     @property
     def learned(self) -> bool:
@@ -188,13 +237,16 @@ class Segmenter:
         hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
         return tile_histograms(hue_bin_image(hsv, self.config, self._lut), self.config.tile, _n_bins(self.config), self._index)
 
-    def foreground_tiles(self, hsv: np.ndarray, roi: tuple[int, int, int, int]) -> np.ndarray:
-        """Boolean (tiles_y, tiles_x) of the ROI: True where the tile differs from the background."""
+    def foreground_tiles(self, hsv: np.ndarray, roi: tuple[int, int, int, int], *, bins: np.ndarray | None = None
+                         ) -> np.ndarray:
+        """Boolean (tiles_y, tiles_x) of the ROI: True where the tile differs from the background
+        (``bins``: the region's :func:`hue_bin_image`, if the caller has it)."""
         c = self.config
         x0, y0, x1, y1 = roi
-        hist = tile_histograms(hue_bin_image(hsv, c, self._lut), c.tile, _n_bins(c), self._index)
-        M = self.background[y0 // c.tile: -(-y1 // c.tile), x0 // c.tile: -(-x1 // c.tile)]
-        return histogram_intersection(hist, M) < c.match_threshold
+        if bins is None:
+            bins = hue_bin_image(hsv, c, self._lut)
+        hist = tile_histograms(bins, c.tile, _n_bins(c), self._index)
+        return self._foreground(hist, (slice(y0 // c.tile, -(-y1 // c.tile)), slice(x0 // c.tile, -(-x1 // c.tile))))
 
     def segment(self, image: np.ndarray, roi=None, *, method: str = "sparse") -> np.ndarray:
         """Skin mask (uint8 0/255) of ``image`` or of the region ``roi`` (snapped to tiles)."""
@@ -206,6 +258,11 @@ class Segmenter:
             roi = (0, 0, self.image_size[0], self.image_size[1])
         else:
             roi = snap_roi(roi, c.tile, self.image_size)
+        return self._segment_snapped(image, roi, method)
+
+    def _segment_snapped(self, image: np.ndarray, roi, method: str = "sparse") -> np.ndarray:
+        """:meth:`segment` of a checked image and a tile-aligned region within it."""
+        c = self.config
         x0, y0, x1, y1 = roi
         if x1 <= x0 or y1 <= y0:
             return np.zeros((max(0, y1 - y0), max(0, x1 - x0)), np.uint8)
@@ -214,7 +271,24 @@ class Segmenter:
         hsv = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_BGR2HSV)
         return self.segment_hsv(hsv, roi, method=method)
 
-    def _segment_coarse(self, image: np.ndarray, roi) -> np.ndarray:
+    def segment_region(self, image: np.ndarray, roi=None, *, pad: int = 0) -> tuple[np.ndarray, tuple[int, int]]:
+        """:meth:`segment`, cut to where it can hold skin: ``(mask, (x, y))``, the mask over the
+        boxes the coarse pass segments (their bounding box) widened by ``pad`` pixels within the
+        region, and that mask's top-left corner in the image. :meth:`segment`'s mask is zero
+        outside it (a 1×1 zero mask when there is no skin); a region without the coarse pass comes
+        whole. A detector that looks ``pad`` pixels around skin finds the same there, without
+        allocating and scanning the whole frame."""
+        if self.background is None:
+            raise VisionError("segment_region() before learn(): no background model")
+        image = _check_image(image, self.image_size)
+        c = self.config
+        roi = (0, 0, *self.image_size) if roi is None else snap_roi(roi, c.tile, self.image_size)
+        x0, y0, x1, y1 = roi
+        if c.coarse > 1 and (x1 - x0) * (y1 - y0) >= c.coarse_min_px:
+            return self._segment_coarse(image, roi, pad=pad)
+        return self._segment_snapped(image, roi), (x0, y0)
+
+    def _segment_coarse(self, image: np.ndarray, roi, *, pad: int | None = None):
         """:meth:`segment` of a large region through a coarse pass: the skin test on a subsampled
         image (every ``coarse``-th pixel), its skin regions widened by ``coarse_margin`` coarse
         pixels, and the full-resolution segmentation run only in the tile-aligned boxes of those
@@ -227,43 +301,66 @@ class Segmenter:
         c = self.config
         x0, y0, x1, y1 = roi
         k = c.coarse
-        small = image[y0:y1:k, x0:x1:k]
+        if (x1 - x0) % k or (y1 - y0) % k:
+            small = image[y0:y1:k, x0:x1:k]
+        else:  # the same samples as the slice (nearest neighbour at an integer step), without a strided copy
+            small = cv2.resize(image[y0:y1, x0:x1], ((x1 - x0) // k, (y1 - y0) // k), interpolation=cv2.INTER_NEAREST)
         sk = self.skin.mask(small)
-        out = np.zeros((y1 - y0, x1 - x0), np.uint8)
         # a lone skin sample (sensor noise on a skin-like background) starts no box: a region that
         # can hold a fingertip (a disk over 2·coarse pixels wide) has neighbouring samples
         near = cv2.boxFilter(cv2.threshold(sk, 0, 1, cv2.THRESH_BINARY)[1], -1, (3, 3), normalize=False,
                              borderType=cv2.BORDER_CONSTANT)
         sk = cv2.bitwise_and(sk, sk, mask=(near >= 2).view(np.uint8))
-        if not sk.any():
-            return out
-        if c.coarse_margin:
-            sk = cv2.dilate(sk, np.ones((2 * c.coarse_margin + 1,) * 2, np.uint8))
-        n, _, stats, _ = cv2.connectedComponentsWithStats(sk, connectivity=8)
-        for bx, by, bw, bh, _area in stats[1:]:
-            bx0, by0, bx1, by1 = snap_roi((x0 + bx * k, y0 + by * k, x0 + (bx + bw) * k, y0 + (by + bh) * k),
-                                          c.tile, self.image_size)
-            # within the region (tile-aligned, so the box stays tile-aligned)
-            bx0, by0, bx1, by1 = max(bx0, x0), max(by0, y0), min(bx1, x1), min(by1, y1)
-            box = (bx0, by0, bx1, by1)
-            if bx1 <= bx0 or by1 <= by0:
-                continue
+        boxes = []
+        if sk.any():
+            if c.coarse_margin:
+                sk = cv2.dilate(sk, self._coarse_kernel)
+            # 16-bit labels where they fit (several times faster here than 32-bit ones)
+            ltype = cv2.CV_16U if sk.size < 2 ** 16 else cv2.CV_32S
+            n, _, stats, _ = cv2.connectedComponentsWithStats(sk, connectivity=8, ltype=ltype)
+            for bx, by, bw, bh, _area in stats[1:].tolist():
+                bx0, by0, bx1, by1 = snap_roi((x0 + bx * k, y0 + by * k, x0 + (bx + bw) * k, y0 + (by + bh) * k),
+                                              c.tile, self.image_size)
+                # within the region (tile-aligned, so the box stays tile-aligned)
+                bx0, by0, bx1, by1 = max(bx0, x0), max(by0, y0), min(bx1, x1), min(by1, y1)
+                if bx1 > bx0 and by1 > by0:
+                    boxes.append((bx0, by0, bx1, by1))
+        if pad is None:
+            ox, oy, out = x0, y0, np.zeros((y1 - y0, x1 - x0), np.uint8)
+        elif not boxes:
+            return np.zeros((1, 1), np.uint8), (x0, y0)
+        else:  # the boxes' bounding box, widened by pad within the region
+            ox, oy = max(x0, min(b[0] for b in boxes) - pad), max(y0, min(b[1] for b in boxes) - pad)
+            ex, ey = min(x1, max(b[2] for b in boxes) + pad), min(y1, max(b[3] for b in boxes) + pad)
+            out = np.zeros((ey - oy, ex - ox), np.uint8)
+        for box in boxes:
+            bx0, by0, bx1, by1 = box
             hsv = cv2.cvtColor(image[by0:by1, bx0:bx1], cv2.COLOR_BGR2HSV)
             m = self.segment_hsv(hsv, box)
-            dst = out[by0 - y0: by1 - y0, bx0 - x0: bx1 - x0]
+            dst = out[by0 - oy: by1 - oy, bx0 - ox: bx1 - ox]
             cv2.bitwise_or(dst, m, dst=dst)
-        return out
+        return out if pad is None else (out, (ox, oy))
 
     def segment_hsv(self, hsv: np.ndarray, roi: tuple[int, int, int, int], *, method: str = "sparse") -> np.ndarray:
         """Skin mask of an HSV region. ``method="sparse"`` (default) builds histograms only for the
         tiles whose foreground state can matter — tiles holding a skin pixel and their neighbours —
         and gives exactly the mask of ``method="dense"`` (every tile of the region)."""
         c = self.config
-        skin = self.skin.mask_hsv(hsv)
+        if self._hue_lut is not None:
+            hue = cv2.extractChannel(hsv, 0)
+            chroma = cv2.inRange(hsv, (0, c.min_saturation, c.min_value), (255, 255, 255))
+            skin = cv2.bitwise_and(cv2.LUT(hue, self._hue_lut), chroma)
+        else:
+            hue = chroma = None
+            skin = self.skin.mask_hsv(hsv)
         h, w = skin.shape
         t = c.tile
         ty, tx = -(-h // t), -(-w // t)
         dense = method == "dense" or h % t or w % t
+        if not dense and ty * tx <= _DENSE_MAX_TILES:  # a small region (a tracking window): every tile costs fewer calls
+            if not cv2.countNonZero(skin):
+                return skin
+            dense = True
         if not dense:
             skin_tiles = cv2.resize(skin, (tx, ty), interpolation=cv2.INTER_AREA)
             need = skin_tiles if self._dilate_kernel is None else cv2.dilate(skin_tiles, self._dilate_kernel)
@@ -272,9 +369,9 @@ class Segmenter:
                 return np.zeros((h, w), np.uint8)
             dense = sel.size > 0.4 * ty * tx
         if dense:
-            fg = self.foreground_tiles(hsv, roi).view(np.uint8)
+            fg = self.foreground_tiles(hsv, roi, bins=hue_bin_image(hsv, c, self._lut, hue=hue, chroma=chroma)).view(np.uint8)
         else:
-            fg = self._foreground_sparse(hsv, roi, sel, (ty, tx))
+            fg = self._foreground_sparse(hsv, roi, sel, (ty, tx), hue, chroma)
         if self._dilate_kernel is not None:
             fg = cv2.dilate(fg, self._dilate_kernel)
         fg_px = cv2.resize(fg, (tx * t, ty * t), interpolation=cv2.INTER_NEAREST)[:h, :w]
@@ -284,10 +381,12 @@ class Segmenter:
             if bw:  # outside the mask's box (plus half the aperture) the median is 0: filter the box only
                 k = c.median // 2 + 1
                 x0, y0, x1, y1 = max(0, bx - k), max(0, by - k), min(w, bx + bw + k), min(h, by + bh + k)
-                mask[y0:y1, x0:x1] = binary_median(np.ascontiguousarray(mask[y0:y1, x0:x1]), c.median)
+                _median_in_place(mask[y0:y1, x0:x1], c.median)
         return mask
 
-    def _foreground_sparse(self, hsv, roi, sel, shape) -> np.ndarray:
+    def _foreground_sparse(self, hsv, roi, sel, shape, hue=None, chroma=None) -> np.ndarray:
+        """Foreground tiles ``sel`` (flat indices) of the region, the others 0; ``hue``/``chroma``: the
+        region's hue channel and achromatic gate, if the caller has them (hue-only bins)."""
         c = self.config
         t = c.tile
         ty, tx = shape
@@ -299,18 +398,20 @@ class Segmenter:
             dy, dx = np.mgrid[0:t, 0:t]
             off = self._tile_offsets[key] = (dy * w + dx).ravel()
         idx = ((iy * t) * w + ix * t)[:, None] + off[None, :]          # (T, t²) pixel indices
-        px = hsv.reshape(-1, 3)[idx]                                    # (T, t², 3)
-        b = self._lut[px[..., 0]]
-        if c.sat_bins > 1:
-            b = b + self._slut[px[..., 1]]
-        if c.achromatic_bin:
-            b = np.where((px[..., 1] >= c.min_saturation) & (px[..., 2] >= c.min_value), b, c.bins * c.sat_bins)
+        if hue is not None and c.sat_bins == 1 and c.achromatic_bin:
+            b = np.where(chroma.ravel()[idx], self._lut[hue.ravel()[idx]], c.bins)
+        else:
+            px = hsv.reshape(-1, 3)[idx]                                # (T, t², 3)
+            b = self._lut[px[..., 0]]
+            if c.sat_bins > 1:
+                b = b + self._slut[px[..., 1]]
+            if c.achromatic_bin:
+                b = np.where((px[..., 1] >= c.min_saturation) & (px[..., 2] >= c.min_value), b, c.bins * c.sat_bins)
         nb = _n_bins(c)
         hist = np.bincount((np.arange(sel.size)[:, None] * nb + b).ravel(), minlength=sel.size * nb)
         x0, y0 = roi[0] // t, roi[1] // t
-        M = self.background[y0 + iy, x0 + ix]                           # (T, nb)
         fg = np.zeros(ty * tx, np.uint8)
-        fg[sel] = histogram_intersection(hist.reshape(-1, nb), M) < c.match_threshold
+        fg[sel] = self._foreground(hist.reshape(-1, nb), (y0 + iy, x0 + ix))
         return fg.reshape(ty, tx)
 
 
@@ -323,6 +424,19 @@ def binary_median(mask: np.ndarray, k: int) -> np.ndarray:
     ones = cv2.threshold(mask, 0, 1, cv2.THRESH_BINARY)[1]
     count = cv2.boxFilter(ones, -1, (k, k), normalize=False, borderType=cv2.BORDER_REPLICATE)
     return cv2.threshold(count, (k * k) // 2, 255, cv2.THRESH_BINARY)[1]
+
+
+def _median_in_place(mask: np.ndarray, k: int) -> None:
+    """:func:`binary_median` of a mask holding only 0 and 255 (a view is fine), written into it.
+    For k ≤ 7 the box mean of the 0/255 values is thresholded half-way between the means of
+    ``(k² − 1)/2`` and ``(k² + 1)/2`` skin neighbours (at least 5 grey levels apart, so the mean's
+    rounding cannot cross it): one call fewer than the count, and no copy."""
+    if k > 7:
+        mask[...] = binary_median(np.ascontiguousarray(mask), k)
+        return
+    level = int(255 * (k * k // 2 + 0.5) / (k * k))
+    cv2.threshold(cv2.boxFilter(mask, -1, (k, k), borderType=cv2.BORDER_REPLICATE), level, 255, cv2.THRESH_BINARY,
+                  dst=mask)
 
 
 def _check_image(img, size) -> np.ndarray:

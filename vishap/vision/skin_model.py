@@ -75,6 +75,10 @@ class SkinModel:
             raise ConfigError(f"max_sigma must be positive, got {self.max_sigma}", field="max_sigma")
         self.hue_mean = float(self.hue_mean) % _HUE_RANGE
         self._ranges = self._hue_ranges()
+        lut = np.zeros(256, np.uint8)
+        for lo, hi in self._ranges:
+            lut[lo: hi + 1] = 255
+        self.hue_lut = lut  # the hue test alone (255 inside the interval), for callers that apply the gate themselves
 
     # ------------------------------------------------------------------ fitting
     @classmethod

@@ -5,13 +5,15 @@ We search for the fingertip in a small window around the predicted position."
 
 :class:`KalmanCV` is a plain constant-velocity Kalman filter in ``d`` dimensions (image: d = 2)
 whose state is public, as in filterpy: ``x`` (position then velocity), ``P``, ``F``, ``Q``, ``H``,
-``R``, the prior (``x_prior``, ``P_prior``) and the posterior (``x_post``, ``P_post``);
+``R``, the prior (``x_prior``, ``P_prior``) and the posterior (``x_post``, ``P_post``) — kept by
+reference: each step replaces ``x`` and ``P`` with new arrays and never writes into them;
 ``predict(dt)``; ``update(z)``; ``update(None)`` records a miss. :class:`TipTracker` adds the
 search window around the prediction, a confidence that drops with consecutive misses, and the
 "lost" state after which the caller re-detects over the full frame.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,8 +43,8 @@ class KalmanCV:
         self.H = np.hstack([np.eye(d), np.zeros((d, d))])
         self.R = np.eye(d) * float(r)
         self._p0 = (p0_pos, p0_vel)
-        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.x_prior, self.P_prior = self.x, self.P
+        self.x_post, self.P_post = self.x, self.P
         self.y = np.zeros(d)       # last innovation
         self.S = np.eye(d)         # last innovation covariance
         self.misses = 0            # consecutive update(None) calls
@@ -56,7 +58,7 @@ class KalmanCV:
         z = np.asarray(z, dtype=np.float64).reshape(d)
         self.x = np.r_[z, np.zeros(d)]
         self.P = np.diag(np.r_[np.full(d, self._p0[0]), np.full(d, self._p0[1])])
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.x_post, self.P_post = self.x, self.P
         self.misses = 0
         self.initialized = True
 
@@ -76,14 +78,14 @@ class KalmanCV:
             self.Q[idx + d, idx + d] = q * dt
         self.x = self.F @ self.x
         self.P = self.F @ self.P @ self.F.T + self.Q
-        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
+        self.x_prior, self.P_prior = self.x, self.P
         return self.x[:d]
 
     def update(self, z) -> None:
         """Correct with measurement ``z`` (d,), or record a miss with ``None`` (state = prior)."""
         if z is None:
             self.misses += 1
-            self.x_post, self.P_post = self.x.copy(), self.P.copy()
+            self.x_post, self.P_post = self.x, self.P
             return
         d = self.dim
         z = np.asarray(z, dtype=np.float64).reshape(d)
@@ -92,13 +94,14 @@ class KalmanCV:
         # H = [I 0]: H x, H P Hᵀ and P Hᵀ are slices
         self.y = z - self.x[:d]
         PHt = self.P[:, :d]
-        self.S = PHt[:d] + self.R
-        K = np.linalg.solve(self.S, PHt.T).T
+        self.S = S = PHt[:d] + self.R
+        S_inv = _inverse(S) if d <= 2 else None
+        K = PHt @ S_inv if S_inv is not None else np.linalg.solve(S, PHt.T).T
         self.x = self.x + K @ self.y
         I_KH = self._I.copy()
         I_KH[:, :d] -= K
         self.P = I_KH @ self.P @ I_KH.T + K @ self.R @ K.T  # Joseph form
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.x_post, self.P_post = self.x, self.P
         self.misses = 0
 
     @property
@@ -114,6 +117,18 @@ class KalmanCV:
         y = np.asarray(z, dtype=np.float64) - self.H @ self.x
         S = self.H @ self.P @ self.H.T + self.R
         return float(np.sqrt(y @ np.linalg.solve(S, y)))
+
+
+def _inverse(S: np.ndarray) -> np.ndarray | None:
+    """Inverse of a 1×1 or 2×2 innovation covariance in closed form (a general solver's checks
+    cost more than the arithmetic at this size); None when singular (the solver then says so)."""
+    if S.shape[0] == 1:
+        return 1.0 / S if S[0, 0] != 0 else None
+    (a, b), (c, e) = S.tolist()
+    det = a * e - b * c
+    if det == 0 or not math.isfinite(det):
+        return None
+    return np.array([[e / det, -b / det], [-c / det, a / det]])
 
 
 @dataclass(frozen=True)
@@ -160,14 +175,15 @@ class TipTracker:
         if not self.tracking:
             return None
         c = self.config
-        sig = np.sqrt(np.maximum(np.diag(self.kf.P)[:2], 0.0))
-        half = c.window_sigma * sig + c.window_margin_px + extra_px
-        if np.any(half > c.window_max_px):
+        P = self.kf.P
+        hx = c.window_sigma * math.sqrt(max(float(P[0, 0]), 0.0)) + c.window_margin_px + extra_px
+        hy = c.window_sigma * math.sqrt(max(float(P[1, 1]), 0.0)) + c.window_margin_px + extra_px
+        if hx > c.window_max_px or hy > c.window_max_px:
             return None
-        u, v = self.kf.position
+        u, v = self.kf.position.tolist()
         w, h = size
-        x0, x1 = max(0, int(u - half[0])), min(w, int(np.ceil(u + half[0])) + 1)
-        y0, y1 = max(0, int(v - half[1])), min(h, int(np.ceil(v + half[1])) + 1)
+        x0, x1 = max(0, int(u - hx)), min(w, math.ceil(u + hx) + 1)
+        y0, y1 = max(0, int(v - hy)), min(h, math.ceil(v + hy) + 1)
         if x1 <= x0 or y1 <= y0:
             return None
         return x0, y0, x1, y1
