@@ -32,7 +32,7 @@ import numpy as np
 from vishap.vision.track import TrackerConfig
 from vishap.world.scene import Scene
 from vishap.world.trajectories import FingerTrajectory
-from vishap.world.world import World
+from vishap.world.world import BASE_CONTACT_M, World
 
 __all__ = ["FingerPad", "VisionModel", "ApproachResult", "run_approach", "make_device", "device_ready", "ready_checks"]
 
@@ -106,7 +106,7 @@ class ApproachResult:
     subject_at_contact: str | None = None
     press_depth_m: np.ndarray | None = None  # fingertip depth under the surface (m) in the press
     press_force_n: np.ndarray | None = None  # device normal force (N) in the press
-    through_object: bool = False  # the device's path cut through a non-subject object
+    through_object: bool = False  # the device's passive face cut through a non-subject object
     slide_friction_ratio: float | None = None  # median |F_t| / F_n while sliding (fabric: ≈ μ_k)
     log: dict | None = None
     ready: bool = False  # the device was ready at the first touch (:func:`device_ready`)
@@ -313,11 +313,15 @@ def device_ready(obj, p_device, v_device, p_touch, v_finger, half_size_m: float,
 
 
 def _cuts_through(scene: Scene, dev: np.ndarray, subj: np.ndarray) -> bool:
-    """True if the device path ever entered a solid object other than the one it was rendering."""
+    """True if the device's passive face (the square of ``passive_object.half_size_m`` around its
+    contact point ``dev``, in the object's plane) ever entered a solid object other than the one it was
+    rendering: more than 1 mm under its top and more than ``BASE_CONTACT_M`` above its base."""
     step = max(1, len(dev) // 400)
+    r = scene.passive_object.half_size_m
     for o in scene.objects:
         q = (dev[::step] - o.centre) @ o.R
-        inside = (np.abs(q[:, 0]) < o.half[0]) & (np.abs(q[:, 1]) < o.half[1]) & (q[:, 2] < -0.001) & (q[:, 2] > -o.depth_m)
+        inside = (np.abs(q[:, 0]) < o.half[0] + r) & (np.abs(q[:, 1]) < o.half[1] + r) & (q[:, 2] < -0.001) \
+            & (q[:, 2] > -o.depth_m + BASE_CONTACT_M)
         if np.any(inside & (subj[::step] != o.name)):
             return True
     return False
