@@ -144,3 +144,17 @@ def test_a_missed_detection_is_a_coasting_track_not_a_lost_finger():
                      stop_after_contact_s=0.15)
     assert r.t_contact is not None
     assert step.guard.counts["finger_lost"] == 0
+
+
+def test_a_pass_through_an_object_is_counted_by_the_point_and_by_the_whole_face():
+    from vishap.world.closed_loop import _cuts_through
+
+    scene = load_scene("panel")
+    half = scene.passive_object.half_size_m
+    subj = np.array(["key_b"] * 3, dtype=object)
+    beside = np.array([[0.23, 0.025, -0.135]] * 3)  # 13 mm off the shelf's side, 5 mm under its top
+    assert not _cuts_through(scene, beside, subj) and _cuts_through(scene, beside, subj, half)
+    on_plane = np.array([[0.20, -0.026, -0.1495]] * 3)  # a face on the wall beside the shelf's base: a touch
+    assert not _cuts_through(scene, on_plane, subj, half)
+    inside = np.array([[0.20, 0.0, -0.140]] * 3)
+    assert _cuts_through(scene, inside, subj) and not _cuts_through(scene, inside, np.array(["shelf"] * 3, dtype=object), half)

@@ -204,7 +204,10 @@ def test_device_leaves_a_raised_object_at_its_level_and_drops_off_its_edge():
         if it.via:
             vias.append(it.X_d.copy())
         dev = nxt
-    assert vias and all(v[2] == pytest.approx(-0.130 + w.path_margin_m) for v in vias)
+    # at the shelf's level + the margin while the face is over the shelf; at the device's own level (the
+    # step's last 0.1 mm short of it) once the face is past the shelf's edge and the way down is clear
+    assert vias and vias[0][2] == pytest.approx(-0.130 + w.path_margin_m)
+    assert all(-0.130 < v[2] <= -0.130 + w.path_margin_m + 1e-9 for v in vias)
     assert np.allclose(dev, [0.17, 0.04, -0.15], atol=1e-6)
 
 
@@ -368,3 +371,30 @@ def test_a_key_runs_up_with_the_finger_within_the_keycaps_room():
     assert offsets[0] == 0.0  # far from the key: its centre
     it = w.update(16 / 30, key.centre + np.array([0.001, 0.0, -0.001]))  # the touch, seen
     assert np.allclose(it.X_d, key.centre)
+
+
+def test_the_whole_passive_face_goes_round_the_shelf():
+    """The passive face at its size in the scene file (a 40 mm plate), not only its centre, stays out of
+    the shelf: from the shelf down to a key, and down to a landing point on the wall beside the shelf's
+    side (the face then waits clear of the shelf, the finger landing off its centre but on it)."""
+    from vishap.world.world import BASE_CONTACT_M
+
+    scene = load_scene("panel")
+    half = scene.passive_object.half_size_m
+    shelf = scene.object("shelf")
+    for finger, end in (([0.17, 0.04, -0.140], [0.17, 0.04, -0.150]),
+                        ([0.20, -0.026, -0.140], [0.20, -0.026, -0.150])):
+        w = World(scene, predictor="none")
+        w.update(0.0, [0.20, 0.0, -0.120])
+        dev = np.array([0.20, 0.005, -0.130])  # resting on the shelf
+        for i in range(1, 200):  # the device moves 2 mm per update towards X_d
+            it = w.update(i * 0.02, finger, dev)
+            step = it.X_d - dev
+            nxt = dev + step * min(1.0, 0.002 / max(np.linalg.norm(step), 1e-12))
+            assert not shelf.segment_hits(dev, nxt, margin=half, top_clearance=-0.0005,
+                                          bottom_clearance=BASE_CONTACT_M), (finger, i, dev, nxt)
+            dev = nxt
+        assert dev[2] == pytest.approx(-0.150)  # it got down
+        off = np.abs(dev[:2] - end[:2])
+        assert max(off) < half - 0.005, (finger, dev)  # the finger lands on the face
+        assert abs(dev[1]) >= shelf.half[1] + half  # beside the shelf, the whole face clear of it

@@ -322,6 +322,8 @@ def run(args) -> dict:
             "subject_correct_at_contact_rate": float(np.mean([r.subject_at_contact == r.object_name for r in rs])),
             "subject_switches_median": float(np.median([max(len(r.subjects) - 1, 0) for r in rs])),
             "through_object_count": int(sum(r.through_object for r in rs)),
+            # the passive face at its real size: a finger meeting it in transit can push it into an object
+            "face_through_object_count": int(sum(r.face_through_object for r in rs)),
         }
     if fig6:
         charts.append(str(_plot_fig6(fig6, scenes, out / "fig6_force_depth.png")))

@@ -32,7 +32,7 @@ import numpy as np
 from vishap.vision.track import TrackerConfig
 from vishap.world.scene import Scene
 from vishap.world.trajectories import FingerTrajectory
-from vishap.world.world import World
+from vishap.world.world import BASE_CONTACT_M, World
 
 __all__ = ["FingerPad", "VisionModel", "ApproachResult", "run_approach", "make_device", "device_ready", "ready_checks"]
 
@@ -106,7 +106,8 @@ class ApproachResult:
     subject_at_contact: str | None = None
     press_depth_m: np.ndarray | None = None  # fingertip depth under the surface (m) in the press
     press_force_n: np.ndarray | None = None  # device normal force (N) in the press
-    through_object: bool = False  # the device's path cut through a non-subject object
+    through_object: bool = False  # the device's path (its contact point) cut through a non-subject object
+    face_through_object: bool = False  # the passive face, at its real size, entered a non-subject object
     slide_friction_ratio: float | None = None  # median |F_t| / F_n while sliding (fabric: ≈ μ_k)
     log: dict | None = None
     ready: bool = False  # the device was ready at the first touch (:func:`device_ready`)
@@ -257,6 +258,7 @@ def run_approach(
         if mid.sum() > 10:
             ratio = float(np.median(f_t[:n_ticks][mid] / f_n[:n_ticks][mid]))
     through = _cuts_through(scene, dev, subj)
+    face_through = _cuts_through(scene, dev, subj, half)
     order = [x for i, x in enumerate(subj) if x and (i == 0 or x != subj[i - 1])]
     log = None
     if record:
@@ -266,7 +268,7 @@ def run_approach(
     return ApproachResult(
         traj.object_name, obj.kind, traj.speed_m_s, t_contact, touched, in_place, lead, err,
         cost / max(n_ticks, 1) * 1e6, order, None if t_contact is None else subj[k_contact],
-        d_f[sel], f_n[sel], through, ratio, log, ready, checks,
+        d_f[sel], f_n[sel], through, face_through, ratio, log, ready, checks,
     )
 
 
@@ -312,12 +314,15 @@ def device_ready(obj, p_device, v_device, p_touch, v_finger, half_size_m: float,
     return all(ready_checks(obj, p_device, v_device, p_touch, v_finger, half_size_m, dt).values())
 
 
-def _cuts_through(scene: Scene, dev: np.ndarray, subj: np.ndarray) -> bool:
-    """True if the device path ever entered a solid object other than the one it was rendering."""
+def _cuts_through(scene: Scene, dev: np.ndarray, subj: np.ndarray, r: float = 0.0) -> bool:
+    """True if the device's contact point ``dev`` (with ``r``: the square of half width ``r`` around it in
+    the object's plane, the passive face) ever entered a solid object other than the one it was
+    rendering: more than 1 mm under its top and more than ``BASE_CONTACT_M`` above its base."""
     step = max(1, len(dev) // 400)
     for o in scene.objects:
         q = (dev[::step] - o.centre) @ o.R
-        inside = (np.abs(q[:, 0]) < o.half[0]) & (np.abs(q[:, 1]) < o.half[1]) & (q[:, 2] < -0.001) & (q[:, 2] > -o.depth_m)
+        inside = (np.abs(q[:, 0]) < o.half[0] + r) & (np.abs(q[:, 1]) < o.half[1] + r) & (q[:, 2] < -0.001) \
+            & (q[:, 2] > -o.depth_m + BASE_CONTACT_M)
         if np.any(inside & (subj[::step] != o.name)):
             return True
     return False

@@ -225,11 +225,13 @@ class SceneObject:
             return float(q[2])
         return float(np.sqrt(dxy @ dxy + q[2] * q[2]))
 
-    def segment_hits(self, a, b, *, margin: float = 0.0, top_clearance: float = 0.0) -> bool:
-        """True when the segment a→b enters the solid slab (grown by ``margin`` sideways and reaching
-        ``top_clearance`` above the surface): the slab method on the box in the object frame."""
+    def segment_hits(self, a, b, *, margin: float = 0.0, top_clearance: float = 0.0,
+                     bottom_clearance: float = 0.0) -> bool:
+        """True when the segment a→b enters the solid slab (grown by ``margin`` sideways, reaching
+        ``top_clearance`` above the surface and starting ``bottom_clearance`` above its base): the slab
+        method on the box in the object frame."""
         qa, qb = self.local(a), self.local(b)
-        lo = np.array([-self.half[0] - margin, -self.half[1] - margin, -self.depth_m])
+        lo = np.array([-self.half[0] - margin, -self.half[1] - margin, -self.depth_m + bottom_clearance])
         hi = np.array([self.half[0] + margin, self.half[1] + margin, top_clearance])
         d = qb - qa
         t0, t1 = 0.0, 1.0

@@ -13,8 +13,9 @@ At vision rate, :meth:`World.update` takes the fingertip in the robot frame and
    A button's target is its top centre (VisHap §2.3). In contact, a ``follow`` mode tracks the
    finger's projection (sliding). Near the finger the device waits still on the landing point and
    moves only as much as the landing needs, then runs up sideways with the finger (:class:`World`);
-5. routes the device around objects: if the straight path from the device to ``X_d`` would cut
-   through any object's solid, ``X_d`` becomes a way-point above the obstacles.
+5. routes the device around objects: if the straight path of the device's passive face (its real
+   size, ``passive_object.size_m``) to ``X_d`` would cut through any object's solid, ``X_d`` becomes a
+   way-point above the obstacles.
 
 The subject's force law is rendered at servo rate by the servo step
 (:class:`vishap.runtime.core.ContactRenderer`), from the subject and flags the world announces.
@@ -36,6 +37,9 @@ CONTACT_MODELS = ("ray", "path", "both", "reach", "all")
 _UP = np.array([0.0, 0.0, 1.0])
 #: the slowest closing speed the time left to a touch is computed with (m/s; the ray's own floor)
 _MIN_CLOSING_M_S = 0.02
+#: how far above an object's base the passive face may overlap its footprint: a face lying on the surface
+#: the object stands on (the panel plane beside the shelf) touches the base, it does not pass through it
+BASE_CONTACT_M = 0.001
 
 
 @dataclass
@@ -142,6 +146,8 @@ class World:
         # leave half of it (the other half is for the prediction's remaining error); the run-up never
         # takes more than that half either. Before, near the finger, moves under ``deadband_m`` are noise.
         self.replan_m = max(0.5 * (scene.passive_object.half_size_m - float(inside_m)), 0.0)
+        # routing moves the whole face, not its centre: every solid is grown sideways by its half width
+        self.face_m = scene.passive_object.half_size_m
         self.deadband_m = float(deadband_m)
         tops = [o.centre + o.R[:, :2] @ (o.half * np.array(s)) for o in scene.objects for s in
                 ((1, 1), (1, -1), (-1, 1), (-1, -1))]
@@ -230,6 +236,8 @@ class World:
         X = self._target(subj, p, c, h, confirmed, near, frozen)
         if not confirmed and runup and near:
             X = X + self._runup(t, subj, reach)
+        if not confirmed:
+            X = self._face_clear(X, subj)
         via = False
         start = p_robot_device if p_robot_device is not None else self.X_d
         if start is not None:
@@ -342,11 +350,12 @@ class World:
 
     def _route(self, start: np.ndarray, X: np.ndarray, subj: SceneObject) -> np.ndarray:
         """``X`` if the straight path from ``start`` is clear; else a way-point. Leaving the top of an
-        object for a target off it, the device first lifts by ``path_margin_m`` (a fast sideways move
-        dips), then moves at that level until the way down to ``X`` is clear (off a raised object's edge,
-        not up into the finger's way); failing that, a way-point above all obstacles."""
+        object (its face over it) for a target off it, the device first lifts by ``path_margin_m`` (a
+        fast sideways move dips), then moves at that level until the way down to ``X`` is clear (the
+        whole face off a raised object's edge, not up into the finger's way); failing that, a way-point
+        above all obstacles."""
         m = self.path_margin_m
-        on = [o for o in self.scene.objects if o.inside_extent(start) and abs(o.height(start)) < m]
+        on = [o for o in self.scene.objects if o.inside_extent(start, self.face_m) and abs(o.height(start)) < m]
         leaving = [o for o in on if not o.inside_extent(X)]
         if not leaving and self._clear(start, X):
             return X
@@ -370,11 +379,35 @@ class World:
         up[2] = max(self.z_safe, start[2])
         return up
 
+    def _face_clear(self, X: np.ndarray, subj: SceneObject) -> np.ndarray:
+        """``X`` moved along the subject's surface until the face waiting there is clear of every other
+        object standing beside and above it (a landing point next to the shelf's side would put the
+        face into the shelf: no path reaches it). The finger then lands off the face's centre; the move
+        is never more than the face's half width (the finger still lands on it)."""
+        m = self.path_margin_m + self.face_m
+        for o in self.scene.objects:
+            if o is subj:
+                continue
+            q = o.local(X)
+            if not -o.depth_m - BASE_CONTACT_M < q[2] < 0.0:
+                continue
+            out = o.half + m - np.abs(q[:2])  # how far the face reaches into the solid along each axis
+            if np.any(out <= 0.0):
+                continue
+            k = int(np.argmin(out))
+            d = o.R[:, k] * (out[k] if q[k] >= 0.0 else -out[k])
+            d -= subj.normal * float(subj.normal @ d)
+            if np.linalg.norm(d) <= self.face_m:
+                X = X + d
+        return X
+
     def _clear(self, a, b) -> bool:
-        """No object's solid on the segment a→b (an object that already holds ``a`` may be left)."""
-        m = self.path_margin_m
+        """No object's solid on the path of the passive face from a to b (each solid grown sideways by
+        the face's half width and ``path_margin_m``: the square face swept along a→b meets the solid
+        exactly when a→b meets the grown one); an object that already holds ``a`` may be left."""
+        m = self.path_margin_m + self.face_m
         return not any(
-            o.segment_hits(a, b, margin=m, top_clearance=-0.0005)
+            o.segment_hits(a, b, margin=m, top_clearance=-0.0005, bottom_clearance=BASE_CONTACT_M)
             for o in self.scene.objects
             if not o.segment_hits(a, a, margin=0.0, top_clearance=-0.0005)
         )
