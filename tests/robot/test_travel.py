@@ -172,3 +172,75 @@ def test_anchor_follows_the_arm_only_where_the_object_gain_let_go():
     out = lim.step(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     out = lim.step(0.001, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     assert out[2] < -0.004 and abs(out[5]) <= 0.2 + 40.0 * 0.001 + 1e-9
+
+
+@pytest.mark.parametrize("accel", [10.0, 40.0])
+def test_jumps_of_every_size_are_travelled_with_bounded_jerk_and_without_overshoot(accel):
+    """0.2–50 mm jumps in three directions: speed, acceleration and jerk stay within their limits
+    (the acceleration changes by at most jerk·dt a tick: the force the PD asks for has no steps), the
+    remaining distance never grows, and the output ends on the target."""
+    jerk, dt = 2000.0, 1e-3
+    for d in (0.0002, 0.001, 0.003, 0.008, 0.012, 0.016, 0.02, 0.03, 0.05):
+        for direction in ((1.0, 0.0, 0.0), (0.0, -0.6, 0.8), (0.48, 0.6, -0.64)):
+            goal = d * np.asarray(direction)
+            xs, vs, _ = _run(TravelLimiter(0.6, accel, jerk), goal, seconds=0.4)
+            acc = np.diff(vs, axis=0) / dt
+            assert np.linalg.norm(vs, axis=1).max() <= 0.6 + 1e-9
+            assert np.linalg.norm(acc, axis=1).max() <= accel * (1 + 1e-9)
+            assert np.linalg.norm(np.diff(acc, axis=0), axis=1).max() / dt <= jerk * (1 + 1e-6)
+            dist = np.linalg.norm(xs - goal, axis=1)
+            assert np.all(np.diff(dist) <= 1e-9), (d, direction)
+            assert dist[-1] < 1e-6
+
+
+def test_the_jerk_limit_takes_the_steps_out_of_the_force_the_servo_asks_for():
+    """The same 20 mm move through the servo: with the jerk limit the PD's force changes by a
+    fraction of what the bang-bang acceleration (an unlimited jerk) switches in one tick, and the move
+    takes at most a little longer."""
+    bang = _force_steps(TravelLimiter(0.6, 40.0, 1e9))
+    smooth = _force_steps(TravelLimiter(0.6, 40.0, 1000.0))
+    assert bang[0] > 0.4 and smooth[0] < 0.25 * bang[0]
+    assert smooth[1] < bang[1] + 0.05
+
+
+def _force_steps(travel, dy: float = 0.02):
+    """(largest |ΔF_pd| in one tick, time to within 1 mm) for a ``dy`` target jump after settling."""
+    from vishap.robot.gains import load_gains
+
+    servo = build_servo(policy="hold", travel=travel, gains=load_gains(override={"vision_hz": 0.0})[0])
+    ctrl = servo.controller
+    for k in range(700):
+        servo.tick(k * 1e-3)
+    goal = np.array(ctrl.p) + np.array([0.0, dy, 0.0])
+    F, t_in = [], None
+    for k in range(700, 1000):
+        servo.tick(k * 1e-3, goal)
+        F.append(ctrl.F_pd)
+        if t_in is None and np.linalg.norm(np.array(ctrl.p) - goal) < 1e-3:
+            t_in = (k - 700) * 1e-3
+    return float(np.linalg.norm(np.diff(np.array(F), axis=0), axis=1).max()), t_in
+
+
+def test_the_caps_act_on_the_finger_predicted_ahead():
+    """A finger closing at 0.5 m/s on a device travelling towards it: given the finger's state, the
+    limiter is down to the near-finger speed while the finger is still ≈ 0.5 m/s·``lead_s`` further
+    out than told only the distance now (the device follows its output some 30 ms late)."""
+    def distance_when_slow(with_state):
+        lim = TravelLimiter(0.6, 40.0)
+        lim.reset(0.0, 0.0, 0.0)
+        f0, vf = 0.12, -0.5
+        fast = False
+        for k in range(200):
+            t = k * 1e-3
+            f = f0 + vf * t
+            d = f - lim._x[0]
+            out = lim.step(t, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0, finger_m=abs(d),
+                           finger=(f, 0.0, 0.0, vf, 0.0, 0.0) if with_state else None)
+            fast = fast or out[3] > 0.4
+            if fast and out[3] <= lim.near_speed + 1e-9:
+                return d
+        raise AssertionError("never slowed down")
+
+    ahead, now = distance_when_slow(True), distance_when_slow(False)
+    assert now <= TravelLimiter().near_m + 1e-3
+    assert ahead > now + 0.5 * 0.5 * TravelLimiter().lead_s

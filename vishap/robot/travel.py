@@ -32,12 +32,18 @@ import math
 
 from vishap._core.errors import ConfigError
 
-__all__ = ["TravelLimiter", "DEFAULT_SPEED_M_S", "DEFAULT_ACCEL_M_S2", "NEAR_M", "NEAR_SPEED_M_S", "TOUCH_SPEED_M_S"]
+__all__ = ["TravelLimiter", "DEFAULT_SPEED_M_S", "DEFAULT_ACCEL_M_S2", "DEFAULT_JERK_M_S3", "NEAR_M", "NEAR_SPEED_M_S", "TOUCH_SPEED_M_S"]
 
 #: The demos' limits, chosen on the wall demo (docs/robot.md, "Travel limits"): no heat limiting, the
 #: meeting as fast as without limits.
 DEFAULT_SPEED_M_S = 0.6
 DEFAULT_ACCEL_M_S2 = 40.0
+#: the jerk limit: the force the PD asks for to accelerate the arm rises over a/j (20 ms at 40 m/s²)
+#: instead of in one tick, so travel puts no steps through the controller's 30 Hz boxcar (docs/robot.md)
+DEFAULT_JERK_M_S3 = 1000.0
+#: how far ahead (s) the caps near the finger look: the device follows this output ≈ 30 ms late
+#: (the boxcar's half interval, Eq. 5's low-pass, the PD), and the finger keeps moving meanwhile
+LEAD_S = 0.040
 #: within this distance of the fingertip the device's speed is capped (issue 16: ≤ 0.25 m/s within 20 mm)
 NEAR_M = 0.020
 NEAR_SPEED_M_S = 0.25
@@ -47,24 +53,34 @@ TOUCH_M = 0.001
 #: the smallest fraction of the acceleration limit left when the motors are hot
 MIN_SCALE = 0.1
 
-BRAKE = 0.8  # braking curve at 80 % of the acceleration limit: the margin a 1 ms step needs to stop on the target
+BRAKE = 0.8  # braking curves at 80 % of the acceleration and jerk limits: the margin a 1 ms step needs to stop on the target
+#: the velocity loop's gain in units of the position loop's (settle_gain): 4 makes the two critically damped
+VELOCITY_GAIN = 4.0
 
 
 class TravelLimiter:
-    """Follow (x, v) targets with bounded speed and acceleration; scalar arithmetic for the 1 kHz loop."""
+    """Follow (x, v) targets with bounded speed, acceleration and jerk; scalar arithmetic for the 1 kHz loop."""
 
-    __slots__ = ("max_speed", "max_accel", "settle_gain", "min_scale", "near_m", "near_speed", "touch_speed",
-                 "_x", "_v", "_t", "ready", "speed_cap")
+    __slots__ = ("max_speed", "max_accel", "max_jerk", "settle_gain", "min_scale", "near_m", "near_speed",
+                 "touch_speed", "lead_s", "box", "_x", "_v", "_a", "_t", "ready", "speed_cap")
 
-    def __init__(self, max_speed_m_s: float = DEFAULT_SPEED_M_S, max_accel_m_s2: float = DEFAULT_ACCEL_M_S2, *,
-                 settle_gain_hz: float = 100.0, min_scale: float = MIN_SCALE, near_m: float = NEAR_M,
-                 near_speed_m_s: float = NEAR_SPEED_M_S, touch_speed_m_s: float = TOUCH_SPEED_M_S):
-        for name, v in (("max_speed_m_s", max_speed_m_s), ("max_accel_m_s2", max_accel_m_s2), ("settle_gain_hz", settle_gain_hz),
+    def __init__(self, max_speed_m_s: float = DEFAULT_SPEED_M_S, max_accel_m_s2: float = DEFAULT_ACCEL_M_S2,
+                 max_jerk_m_s3: float = DEFAULT_JERK_M_S3, *, settle_gain_hz: float = 100.0, min_scale: float = MIN_SCALE,
+                 near_m: float = NEAR_M, near_speed_m_s: float = NEAR_SPEED_M_S, touch_speed_m_s: float = TOUCH_SPEED_M_S,
+                 lead_s: float = LEAD_S):
+        for name, v in (("max_speed_m_s", max_speed_m_s), ("max_accel_m_s2", max_accel_m_s2),
+                        ("max_jerk_m_s3", max_jerk_m_s3), ("settle_gain_hz", settle_gain_hz),
                         ("near_m", near_m - TOUCH_M), ("near_speed_m_s", near_speed_m_s), ("touch_speed_m_s", touch_speed_m_s)):
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"must be a finite number > 0, got {v!r}", field=f"travel.{name}")
         self.max_speed = float(max_speed_m_s)
         self.max_accel = float(max_accel_m_s2)
+        self.max_jerk = float(max_jerk_m_s3)
+        if not (isinstance(lead_s, (int, float)) and math.isfinite(lead_s) and lead_s >= 0):
+            raise ConfigError(f"must be a finite number ≥ 0, got {lead_s!r}", field="travel.lead_s")
+        self.lead_s = float(lead_s)
+        #: ``((x0, y0, z0), (x1, y1, z1))``: the workspace box (m) the output brakes to stay inside, or None
+        self.box = None
         self.settle_gain = float(settle_gain_hz)  # 1/s: the closing speed's slope near the target
         if not 0.0 < min_scale <= 1.0:
             raise ConfigError(f"must be in (0, 1], got {min_scale!r}", field="travel.min_scale")
@@ -75,6 +91,7 @@ class TravelLimiter:
         self.speed_cap = self.max_speed  # the cap applied at the last step (m/s)
         self._x = (0.0, 0.0, 0.0)
         self._v = (0.0, 0.0, 0.0)
+        self._a = (0.0, 0.0, 0.0)
         self._t = None
         self.ready = False
 
@@ -82,13 +99,14 @@ class TravelLimiter:
         """Start from the arm's own position and velocity (m, m/s)."""
         self._x = (float(x), float(y), float(z))
         self._v = (float(vx), float(vy), float(vz))
+        self._a = (0.0, 0.0, 0.0)
         self._t = None
         self.ready = True
 
     def anchor(self, px: float, py: float, pz: float, vx: float, vy: float, vz: float, L) -> None:
         """Where the object gain ``L`` (3×3 robot frame, nested sequence) has released the servo, the
         limiter's state follows the arm (``p``, ``v``): ``x ← x + (I − L)(p − x)``, the same for the
-        velocity. While the finger pushes the device in or drags it sideways the target stays on the
+        velocity; the acceleration keeps only the part where the gain holds. While the finger pushes the device in or drags it sideways the target stays on the
         surface or under the finger's estimate; without this, the servo would take the device back to
         it on the PD's spring the moment the gain returns (0.3–0.5 m/s a few millimetres from the
         lifting finger); with it, the device goes back at the travel speeds and the caps near the
@@ -103,6 +121,9 @@ class TravelLimiter:
                    x[2] + ez - (r2[0] * ex + r2[1] * ey + r2[2] * ez))
         self._v = (v[0] + fx - (r0[0] * fx + r0[1] * fy + r0[2] * fz), v[1] + fy - (r1[0] * fx + r1[1] * fy + r1[2] * fz),
                    v[2] + fz - (r2[0] * fx + r2[1] * fy + r2[2] * fz))
+        a = self._a
+        self._a = (r0[0] * a[0] + r0[1] * a[1] + r0[2] * a[2], r1[0] * a[0] + r1[1] * a[1] + r1[2] * a[2],
+                   r2[0] * a[0] + r2[1] * a[1] + r2[2] * a[2])
 
     def cap_at(self, finger_m: float | None) -> float:
         """The speed cap (m/s) at ``finger_m`` metres from the fingertip (None: unknown, ``max_speed``):
@@ -122,20 +143,27 @@ class TravelLimiter:
         return min(self.max_speed, self.touch_speed + f * (self.near_speed - self.touch_speed))
 
     def step(self, t: float, x: float, y: float, z: float, vx: float, vy: float, vz: float, scale: float = 1.0,
-             finger_m: float | None = None, gap_m: float | None = None, normal=None):
+             finger_m: float | None = None, gap_m: float | None = None, normal=None, finger=None, rest=None):
         """The limited target ``(x, y, z, vx, vy, vz)`` at time ``t`` toward the shaped one.
 
         ``finger_m``: the distance (m) from the device to the estimated fingertip, if known; it
         caps the output's speed near the finger (:meth:`cap_at`). ``gap_m`` and ``normal`` (a unit
         3-vector): the finger's height over the device's face along the subject's normal; they cap
-        the speed towards the finger along it (:meth:`normal_cap_at`) while the finger is within
-        ``near_m``. With ``finger_m`` but no
-        normal, the whole speed is held to the normal cap at the distance ``finger_m``.
+        the speed towards it along the normal (:meth:`normal_cap_at`) while the finger is within
+        ``near_m``. With ``finger_m`` but no normal, the whole speed is held to the normal cap at the
+        distance ``finger_m``. ``finger`` (optional): the estimated pad point and its velocity
+        ``(x, y, z, vx, vy, vz)`` at ``t`` in the target's coordinates; the caps then also act on the
+        finger as it will be ``lead_s`` from now against this output, where the device will be by then
+        (the nearer of the two wins), so the device has slowed down *before* it is near the finger.
+        ``rest`` (optional): the point where the moving target will stop unless a new sample moves it
+        on (the shaper's newest sample); the output's speed towards it stays one it can stop from
+        there, so a target that stops dead is not overrun (with bounded jerk the output cannot stop
+        dead with it).
 
-        ``scale`` (0…1) scales the acceleration limit: the servo passes the motors' thermal headroom,
-        so travel spends force only while there is heat budget left for rendering contact (never below
-        ``min_scale``: the device still gets where it must, more slowly). A non-finite target is
-        passed on untouched for the controller to reject; the limiter's own state stays finite."""
+        ``scale`` (0…1) scales the acceleration and jerk limits: the servo passes the motors' thermal
+        headroom, so travel spends force only while there is heat budget left for rendering contact
+        (never below ``min_scale``: the device still gets where it must, more slowly). A non-finite
+        target is passed on untouched for the controller to reject; the limiter's own state stays finite."""
         if not math.isfinite(x + y + z + vx + vy + vz):
             return x, y, z, vx, vy, vz
         if not self.ready:
@@ -147,47 +175,155 @@ class TravelLimiter:
         if dt <= 0.0:
             return cx, cy, cz, ux, uy, uz
         cx, cy, cz = cx + ux * dt, cy + uy * dt, cz + uz * dt  # advance to now, then steer
+        ax, ay, az = self._a
         ex, ey, ez = x - cx, y - cy, z - cz
         d = math.sqrt(ex * ex + ey * ey + ez * ez)
-        a = self.max_accel * min(1.0, max(scale, self.min_scale))
-        # closing speed: linear near the target, the braking curve further out, capped
-        cap = self.cap_at(finger_m)
+        sc = min(1.0, max(scale, self.min_scale))
+        a, j = self.max_accel * sc, self.max_jerk * sc
+        # the caps near the finger
         if normal is None:
             nx = ny = nz = 0.0
+        else:
+            nx, ny, nz = normal
+        if finger is not None:  # the finger lead_s ahead, against where the device will be by then
+            fx, fy, fz, fvx, fvy, fvz = finger
+            L = self.lead_s
+            rx, ry, rz = fx + fvx * L - cx, fy + fvy * L - cy, fz + fvz * L - cz
+            dp = math.sqrt(rx * rx + ry * ry + rz * rz)
+            if dp == dp:
+                finger_m = dp if finger_m is None or not finger_m < dp else finger_m
+                if normal is not None and (gap_m is None or not gap_m < -TOUCH_M):
+                    # a finger predicted through the face is landing on it, not under it
+                    gp = max(rx * nx + ry * ny + rz * nz, 0.0)
+                    gap_m = gp if gap_m is None or not gap_m < gp else gap_m
+        cap = self.cap_at(finger_m)
+        if normal is None:
             capn = math.inf
             if finger_m is not None:
                 cap = min(cap, self.normal_cap_at(finger_m))
         else:
-            nx, ny, nz = normal
             near = finger_m is not None and finger_m < self.near_m  # (a finger beside the device is not over its face)
             capn = self.normal_cap_at(gap_m) if near else math.inf
         self.speed_cap = cap
-        s = min(self.max_speed, math.sqrt(2.0 * BRAKE * a * d), self.settle_gain * d)
-        s = s / d if d > 1e-12 else 0.0
-        wx, wy, wz = vx + s * ex, vy + s * ey, vz + s * ez  # wanted velocity: the target's plus closing
+        # the closing speed: linear near the target, the jerk-limited stopping curve further out, capped;
+        # and its rate of change as the distance closes (fed forward to the acceleration)
+        if d > 1e-12:
+            ix, iy, iz = ex / d, ey / d, ez / d
+        else:
+            ix = iy = iz = 0.0
+        ba, bj = BRAKE * a, BRAKE * j
+        s, slope = _braking_speed(d, (ux - vx) * ix + (uy - vy) * iy + (uz - vz) * iz, ax * ix + ay * iy + az * iz, ba, bj)
+        lin = self.settle_gain * d
+        if lin <= s:
+            s, slope = lin, self.settle_gain
+        if s >= self.max_speed:
+            s, slope = self.max_speed, 0.0
+        af = -slope * ((ux - vx) * ix + (uy - vy) * iy + (uz - vz) * iz)  # d(s)/dt = s'(d)·ḋ
+        afx, afy, afz = af * ix, af * iy, af * iz
+        wx, wy, wz = vx + s * ix, vy + s * iy, vz + s * iz  # wanted velocity: the target's plus closing
+        if rest is not None:  # a target that will stop: never faster towards where it stops than the
+            ex, ey, ez = rest[0] - cx, rest[1] - cy, rest[2] - cz  # output can stop there too
+            d = math.sqrt(ex * ex + ey * ey + ez * ez)
+            if d > 1e-12:
+                ex, ey, ez = ex / d, ey / d, ez / d
+                ur = ux * ex + uy * ey + uz * ez
+                s, slope = _braking_speed(d, ur, ax * ex + ay * ey + az * ez, ba, bj)
+                wr = wx * ex + wy * ey + wz * ez
+                if wr > s:
+                    wr -= s
+                    wx, wy, wz = wx - wr * ex, wy - wr * ey, wz - wr * ez
+                    af = -slope * ur
+                    afx, afy, afz = af * ex, af * ey, af * ez
+        if self.box is not None:  # towards a face of the box no faster than the arm can stop before it
+            (x0, y0, z0), (x1, y1, z1) = self.box
+            if wx > 0.0:
+                wx = min(wx, _braking_speed(x1 - cx, ux, ax, ba, bj)[0])
+            elif wx < 0.0:
+                wx = max(wx, -_braking_speed(cx - x0, -ux, -ax, ba, bj)[0])
+            if wy > 0.0:
+                wy = min(wy, _braking_speed(y1 - cy, uy, ay, ba, bj)[0])
+            elif wy < 0.0:
+                wy = max(wy, -_braking_speed(cy - y0, -uy, -ay, ba, bj)[0])
+            if wz > 0.0:
+                wz = min(wz, _braking_speed(z1 - cz, uz, az, ba, bj)[0])
+            elif wz < 0.0:
+                wz = max(wz, -_braking_speed(cz - z0, -uz, -az, ba, bj)[0])
         wn = math.sqrt(wx * wx + wy * wy + wz * wz)
-        if wn > cap:  # the output is never faster than the cap, the target's own velocity included
+        if wn > cap:  # never faster than the cap, the target's own velocity included
             k = cap / wn
             wx, wy, wz = wx * k, wy * k, wz * k
+            afx = afy = afz = 0.0
         wn = wx * nx + wy * ny + wz * nz
         if wn > capn:  # towards the finger along the normal: slower as the gap closes
             wn -= capn
             wx, wy, wz = wx - wn * nx, wy - wn * ny, wz - wn * nz
+        # the wanted acceleration: towards the wanted velocity on a curve that reaches it with zero
+        # acceleration at the jerk limit (no speed overshoot), plus the closing speed's own rate
         dx, dy, dz = wx - ux, wy - uy, wz - uz
         dv = math.sqrt(dx * dx + dy * dy + dz * dz)
-        lim = a * dt
-        if dv > lim:
-            k = lim / dv
+        if dv > 1e-12:
+            g = min(a, math.sqrt(2.0 * BRAKE * j * dv), VELOCITY_GAIN * self.settle_gain * dv) / dv
+            dx, dy, dz = afx + g * dx, afy + g * dy, afz + g * dz
+        else:
+            dx, dy, dz = afx, afy, afz
+        an = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if an > a:
+            k = a / an
             dx, dy, dz = dx * k, dy * k, dz * k
-        ux, uy, uz = ux + dx, uy + dy, uz + dz
+        # the acceleration moves towards it at most at the jerk limit: the force the PD asks for has no steps
+        dx, dy, dz = dx - ax, dy - ay, dz - az
+        jn = math.sqrt(dx * dx + dy * dy + dz * dz)
+        lim = j * dt
+        if jn > lim:
+            k = lim / jn
+            dx, dy, dz = dx * k, dy * k, dz * k
+        ax, ay, az = ax + dx, ay + dy, az + dz
+        px, py, pz = ux, uy, uz
+        ux, uy, uz = ux + ax * dt, uy + ay * dt, uz + az * dt
         un = math.sqrt(ux * ux + uy * uy + uz * uz)
+        clipped = False
         if un > cap:  # a cap that fell faster than the device may brake: met at once
             k = cap / un
             ux, uy, uz = ux * k, uy * k, uz * k
+            clipped = True
         un = ux * nx + uy * ny + uz * nz
         if un > capn:
             un -= capn
             ux, uy, uz = ux - un * nx, uy - un * ny, uz - un * nz
+            clipped = True
+        if clipped:  # the acceleration the clipped velocity really had (within the limit)
+            ax, ay, az = (ux - px) / dt, (uy - py) / dt, (uz - pz) / dt
+            an = math.sqrt(ax * ax + ay * ay + az * az)
+            if an > a:
+                k = a / an
+                ax, ay, az = ax * k, ay * k, az * k
         self._x = (cx, cy, cz)
         self._v = (ux, uy, uz)
+        self._a = (ax, ay, az)
         return cx, cy, cz, ux, uy, uz
+
+
+def _braking_speed(d: float, v: float, acc: float, a: float, j: float) -> tuple[float, float]:
+    """``(s, ds/dd)``: :func:`_stopping_speed` for a device closing at ``v`` with acceleration ``acc``
+    towards a point ``d`` ahead. While a positive ``acc`` unwinds at the jerk limit the device still
+    gains acc²/2j of speed over v·acc/j + acc³/3j² of the distance: it must brake on what is left."""
+    if acc <= 0.0:
+        return _stopping_speed(d, a, j)
+    tau = acc / j
+    s, slope = _stopping_speed(d - max(v, 0.0) * tau - acc * tau * tau / 3.0, a, j)
+    return max(s - 0.5 * acc * tau, 0.0), slope
+
+
+def _stopping_speed(d: float, a: float, j: float) -> tuple[float, float]:
+    """``(s, ds/dd)``: the highest speed from which a stop with acceleration ≤ ``a`` and jerk ≤ ``j``,
+    starting at zero acceleration, ends within ``d`` — the jerk-limited form of the braking curve
+    √(2·a·d). A stop from ``s`` takes ``s·√(s/j)`` while the peak deceleration √(s·j) stays under
+    ``a`` (``s`` ≤ a²/j), else ``s²/(2a) + s·a/(2j)``."""
+    if d <= 0.0:
+        return 0.0, 0.0
+    if d * j * j <= a * a * a:
+        s = (j * d * d) ** (1.0 / 3.0)
+        return s, 2.0 * s / (3.0 * d)
+    r = a * a / j
+    s = 0.5 * (math.sqrt(r * r + 8.0 * a * d) - r)
+    return s, 1.0 / (s / a + 0.5 * r / a)
