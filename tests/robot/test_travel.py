@@ -131,11 +131,11 @@ def test_near_the_finger_the_speed_is_capped_and_touch_down_is_slow():
         dists.append(d)
     speeds, dists = np.array(speeds), np.array(dists)
     near = dists < 0.020
-    assert near.any() and speeds[near].max() <= 0.25 + 1e-9
+    assert near.any() and speeds[near].max() <= lim.near_speed + 1e-9 and lim.near_speed <= 0.25
     assert speeds.max() > 0.4  # far from the finger it still travels fast
     at_touch = dists < 0.001
     assert at_touch.any() and speeds[at_touch].max() <= 0.010 + 1e-12
-    assert lim.cap_at(None) == 0.6 and lim.cap_at(0.0) == pytest.approx(0.25) and lim.cap_at(0.04) == 0.6
+    assert lim.cap_at(None) == 0.6 and lim.cap_at(0.0) == pytest.approx(lim.near_speed) and lim.cap_at(0.04) == 0.6
     assert lim.normal_cap_at(0.0) == pytest.approx(0.010) and lim.normal_cap_at(None) == 0.6
 
 
@@ -148,7 +148,7 @@ def test_with_a_normal_only_the_speed_towards_the_finger_falls_to_the_touch_spee
     lim.reset(0.0, 0.0, 0.0)
     out = [lim.step(k * 1e-3, 0.03, 0.0, 0.0, 0.0, 0.0, 0.0, finger_m=0.005, gap_m=0.0005, normal=n) for k in range(100)]
     v = np.array([o[3:] for o in out])
-    assert np.linalg.norm(v, axis=1).max() == pytest.approx(0.25)
+    assert np.linalg.norm(v, axis=1).max() == pytest.approx(lim.near_speed)
     lim.reset(0.0, 0.0, 0.0)
     out = [lim.step(k * 1e-3, 0.0, 0.0, 0.03, 0.0, 0.0, 0.0, finger_m=0.005, gap_m=0.0005, normal=n) for k in range(100)]
     vz = np.array([o[5] for o in out])
@@ -156,7 +156,7 @@ def test_with_a_normal_only_the_speed_towards_the_finger_falls_to_the_touch_spee
     # away from the finger (down the normal) only the near-finger cap applies
     lim.reset(0.0, 0.0, 0.0)
     out = [lim.step(k * 1e-3, 0.0, 0.0, -0.03, 0.0, 0.0, 0.0, finger_m=0.005, gap_m=0.0005, normal=n) for k in range(100)]
-    assert min(o[5] for o in out) == pytest.approx(-0.25)
+    assert min(o[5] for o in out) == pytest.approx(-lim.near_speed)
 
 
 def test_anchor_follows_the_arm_only_where_the_object_gain_let_go():
@@ -244,3 +244,47 @@ def test_the_caps_act_on_the_finger_predicted_ahead():
     ahead, now = distance_when_slow(True), distance_when_slow(False)
     assert now <= TravelLimiter().near_m + 1e-3
     assert ahead > now + 0.5 * 0.5 * TravelLimiter().lead_s
+
+
+def test_a_target_that_stops_dead_is_not_overrun():
+    """The interpolating shaper's target runs at 0.3 m/s to its newest sample and stops there: told
+    where it will stop (``rest``), the jerk-limited output brakes in time and never passes it; not
+    told, it overruns by millimetres (it cannot stop dead)."""
+    def run(with_rest):
+        lim = TravelLimiter(0.6, 40.0, 1000.0)
+        lim.reset(0.0, 0.0, 0.0)
+        xs = []
+        for k in range(300):
+            t = k * 1e-3
+            x, v = (0.3 * t, 0.3) if t < 0.05 else (0.015, 0.0)
+            xs.append(lim.step(t, x, 0.0, 0.0, v, 0.0, 0.0, rest=(0.015, 0.0, 0.0) if with_rest else None)[0])
+        return np.array(xs)
+
+    told, blind = run(True), run(False)
+    assert told.max() <= 0.015 + 1e-9 and abs(told[-1] - 0.015) < 1e-6
+    assert blind.max() > 0.015 + 0.001
+
+
+def test_the_output_brakes_to_stay_inside_the_workspace_box():
+    """A target beyond the box's face, approached at full speed: the output slows down on its own and
+    stops on the face (the controller would otherwise clamp the target dead at the face and the arm
+    overrun it)."""
+    lim = TravelLimiter(0.6, 40.0, 1000.0)
+    lim.box = ((-0.1, -0.1, -0.1), (0.03, 0.1, 0.1))
+    lim.reset(-0.05, 0.0, 0.0, 0.6, 0.0, 0.0)
+    out = np.array([lim.step(k * 1e-3, 0.06, 0.0, 0.0, 0.0, 0.0, 0.0) for k in range(400)])
+    assert out[:, 0].max() <= 0.03 + 1e-7 and out[-1, 0] == pytest.approx(0.03, abs=1e-6)
+    assert np.linalg.norm(np.diff(out[:, 3:], axis=0), axis=1).max() <= 40.0e-3 + 1e-9
+
+
+def test_the_servo_gives_its_limiter_the_workspace_box_and_the_shapers_rest_point():
+    servo = build_servo(policy="interpolate", travel=TravelLimiter())
+    lim = servo.controller.limits
+    assert servo.travel.box == (tuple(lim.workspace_min), tuple(lim.workspace_max))
+    servo.shaper.push(0.0, 0.1, 0.0, -0.1)
+    servo.shaper.push(0.033, 0.11, 0.0, -0.1)
+    assert servo.shaper.rest() == (0.11, 0.0, -0.1)
+    ex = build_servo(policy="extrapolate", travel=TravelLimiter()).shaper
+    ex.push(0.0, 0.1, 0.0, -0.1)
+    ex.push(0.033, 0.11, 0.0, -0.1)
+    assert ex.rest()[0] == pytest.approx(0.11 + 0.01 / 0.033 * ex.horizon * 0.033)

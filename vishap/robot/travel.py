@@ -1,4 +1,4 @@
-"""Travel limits of the device target: a velocity- and acceleration-limited follower of X_d.
+"""Travel limits of the device target: a speed-, acceleration- and jerk-limited follower of X_d.
 
 The servo's PD (Eq. 4) turns any jump of the target into a force step: a 20 mm jump at Kp 800 N/m
 asks for 16 N, which the controller clips at the 8.5 N peak. The clipped travel heats the motors;
@@ -6,22 +6,35 @@ the heating estimate then holds the arm to its 1.4 N continuous force, and the c
 is rendered soft (the arm sags under the finger). :class:`TravelLimiter` sits between the target
 shaper and the controller and hands the controller a target it can follow without saturating: it
 closes the gap to the shaped target at most at ``max_speed_m_s``, accelerating and braking at most
-at ``max_accel_m_s2`` (braking on the √(2·a·d) curve so that it stops on the target without
-overshoot), plus the target's own velocity. Once the gap is closed the output *is* the target (a
-finger followed at constant speed is followed without lag), so contact rendering is unchanged.
+at ``max_accel_m_s2``, plus the target's own velocity. Once the gap is closed the output *is* the
+target (a finger followed at constant speed is followed without lag), so contact rendering is
+unchanged.
+
+The acceleration itself changes by at most ``max_jerk_m_s3`` (an S-curve): the force the PD asks
+for to move the light arm then has no steps. Switched in one tick (bang-bang), 40 m/s² on a
+0.05–0.2 kg arm is a 2–8 N step, and through the controller's 30 Hz boxcar, whose first sidelobe
+passes 22 % of 30–60 Hz, it was most of the approach's command ripple above 30 Hz (docs/robot.md).
+The closing speed follows the jerk-limited braking curve (the speed a stop starting at zero
+acceleration can shed within the distance left, on the distance left after the acceleration still
+in hand has unwound), and the acceleration follows the wanted velocity on the matching curve plus
+the braking curve's own rate: no overshoot, within every limit. What a jerk limit cannot do is
+stop dead, so the output also brakes towards where the shaped target will stop (``rest``: the
+newest sample the shaper is heading for) and towards the faces of the workspace box (``box``),
+instead of overrunning a target that stops dead or the controller's clamp.
 
 The output's speed — the closing speed *and* the target's own velocity together — never exceeds
 ``max_speed_m_s``. Near the finger it is capped further, in two parts (``finger_m``, ``gap_m`` and
 ``normal`` of :meth:`TravelLimiter.step`):
 
 * within ``near_m`` (20 mm) of the estimated fingertip the speed is at most ``near_speed_m_s``
-  (0.25 m/s), falling to it linearly from ``max_speed_m_s`` at twice that distance, so the device
+  (0.22 m/s: under the goal of 0.25 by the arm's overrun of its target's speed), falling to it
+  linearly from ``max_speed_m_s`` at twice that distance, so the device
   never sweeps past the finger fast;
 * the speed *towards* the finger along the subject's normal falls linearly with the finger's height
   over the device's face (``gap_m``) from ``near_speed_m_s`` at ``near_m`` to ``touch_speed_m_s``
   (10 mm/s) at 1 mm, so the device touches down slowly.
 
-Sideways moves are left at 0.25 m/s near the finger: a cap on the 3-D distance slowed the device's
+Sideways moves are left at the near-finger cap: a cap on the 3-D distance slowed the device's
 last lateral correction and its run-up with the finger as much as the touch-down (docs/world.md).
 Without a normal the whole speed follows the normal cap's ramp in the 3-D distance. The caps win
 over the acceleration limit (a cap that falls faster than the device may brake is met at once).
@@ -46,7 +59,9 @@ DEFAULT_JERK_M_S3 = 1000.0
 LEAD_S = 0.040
 #: within this distance of the fingertip the device's speed is capped (issue 16: ≤ 0.25 m/s within 20 mm)
 NEAR_M = 0.020
-NEAR_SPEED_M_S = 0.25
+#: the output's cap there: 12 % under the goal, the most the arm overran its target's speed in the
+#: demos while the PD took up the lag of a turn (0.26–0.27 m/s measured with the cap at 0.25)
+NEAR_SPEED_M_S = 0.22
 #: the cap within TOUCH_M of the finger: the device touches down at most this fast
 TOUCH_SPEED_M_S = 0.010
 TOUCH_M = 0.001
@@ -62,7 +77,7 @@ class TravelLimiter:
     """Follow (x, v) targets with bounded speed, acceleration and jerk; scalar arithmetic for the 1 kHz loop."""
 
     __slots__ = ("max_speed", "max_accel", "max_jerk", "settle_gain", "min_scale", "near_m", "near_speed",
-                 "touch_speed", "lead_s", "box", "_x", "_v", "_a", "_t", "ready", "speed_cap")
+                 "touch_speed", "lead_s", "box", "_far", "_x", "_v", "_a", "_t", "ready", "speed_cap")
 
     def __init__(self, max_speed_m_s: float = DEFAULT_SPEED_M_S, max_accel_m_s2: float = DEFAULT_ACCEL_M_S2,
                  max_jerk_m_s3: float = DEFAULT_JERK_M_S3, *, settle_gain_hz: float = 100.0, min_scale: float = MIN_SCALE,
@@ -81,6 +96,7 @@ class TravelLimiter:
         self.lead_s = float(lead_s)
         #: ``((x0, y0, z0), (x1, y1, z1))``: the workspace box (m) the output brakes to stay inside, or None
         self.box = None
+        self._far = _far(self.max_speed, self.max_accel, self.max_jerk)
         self.settle_gain = float(settle_gain_hz)  # 1/s: the closing speed's slope near the target
         if not 0.0 < min_scale <= 1.0:
             raise ConfigError(f"must be in (0, 1], got {min_scale!r}", field="travel.min_scale")
@@ -224,7 +240,7 @@ class TravelLimiter:
         if rest is not None:  # a target that will stop: never faster towards where it stops than the
             ex, ey, ez = rest[0] - cx, rest[1] - cy, rest[2] - cz  # output can stop there too
             d = math.sqrt(ex * ex + ey * ey + ez * ez)
-            if d > 1e-12:
+            if 1e-12 < d < self._far:
                 ex, ey, ez = ex / d, ey / d, ez / d
                 ur = ux * ex + uy * ey + uz * ez
                 s, slope = _braking_speed(d, ur, ax * ex + ay * ey + az * ez, ba, bj)
@@ -234,20 +250,22 @@ class TravelLimiter:
                     wx, wy, wz = wx - wr * ex, wy - wr * ey, wz - wr * ez
                     af = -slope * ur
                     afx, afy, afz = af * ex, af * ey, af * ez
-        if self.box is not None:  # towards a face of the box no faster than the arm can stop before it
-            (x0, y0, z0), (x1, y1, z1) = self.box
-            if wx > 0.0:
-                wx = min(wx, _braking_speed(x1 - cx, ux, ax, ba, bj)[0])
-            elif wx < 0.0:
-                wx = max(wx, -_braking_speed(cx - x0, -ux, -ax, ba, bj)[0])
-            if wy > 0.0:
-                wy = min(wy, _braking_speed(y1 - cy, uy, ay, ba, bj)[0])
-            elif wy < 0.0:
-                wy = max(wy, -_braking_speed(cy - y0, -uy, -ay, ba, bj)[0])
-            if wz > 0.0:
-                wz = min(wz, _braking_speed(z1 - cz, uz, az, ba, bj)[0])
-            elif wz < 0.0:
-                wz = max(wz, -_braking_speed(cz - z0, -uz, -az, ba, bj)[0])
+        box = self.box
+        if box is not None:  # towards a face of the box no faster than the arm can stop before it
+            far = self._far
+            (x0, y0, z0), (x1, y1, z1) = box
+            if wx > 0.0 and x1 - cx < far:
+                wx, afx = _brake_to(x1 - cx, wx, ux, ax, afx, ba, bj)
+            elif wx < 0.0 and cx - x0 < far:
+                wx, afx = _brake_to(cx - x0, wx, ux, ax, afx, ba, bj)
+            if wy > 0.0 and y1 - cy < far:
+                wy, afy = _brake_to(y1 - cy, wy, uy, ay, afy, ba, bj)
+            elif wy < 0.0 and cy - y0 < far:
+                wy, afy = _brake_to(cy - y0, wy, uy, ay, afy, ba, bj)
+            if wz > 0.0 and z1 - cz < far:
+                wz, afz = _brake_to(z1 - cz, wz, uz, az, afz, ba, bj)
+            elif wz < 0.0 and cz - z0 < far:
+                wz, afz = _brake_to(cz - z0, wz, uz, az, afz, ba, bj)
         wn = math.sqrt(wx * wx + wy * wy + wz * wz)
         if wn > cap:  # never faster than the cap, the target's own velocity included
             k = cap / wn
@@ -303,6 +321,16 @@ class TravelLimiter:
         return cx, cy, cz, ux, uy, uz
 
 
+def _brake_to(d: float, w: float, u: float, acc: float, af: float, a: float, j: float) -> tuple[float, float]:
+    """One axis's wanted velocity ``w`` (and its fed-forward rate ``af``) held to what can still stop
+    within ``d`` along the sign of ``w`` (``u``, ``acc``: the output's velocity and acceleration)."""
+    sg = 1.0 if w > 0.0 else -1.0
+    s, slope = _braking_speed(d, sg * u, sg * acc, a, j)
+    if sg * w > s:
+        return sg * s, -slope * u
+    return w, af
+
+
 def _braking_speed(d: float, v: float, acc: float, a: float, j: float) -> tuple[float, float]:
     """``(s, ds/dd)``: :func:`_stopping_speed` for a device closing at ``v`` with acceleration ``acc``
     towards a point ``d`` ahead. While a positive ``acc`` unwinds at the jerk limit the device still
@@ -327,3 +355,18 @@ def _stopping_speed(d: float, a: float, j: float) -> tuple[float, float]:
     r = a * a / j
     s = 0.5 * (math.sqrt(r * r + 8.0 * a * d) - r)
     return s, 1.0 / (s / a + 0.5 * r / a)
+
+
+def _far(v_max: float, a: float, j: float) -> float:
+    """Beyond this distance (m) from a face of the box no braking towards it can be due yet: the
+    longest stop, over the speeds up to ``v_max`` and the acceleration the velocity loop can have in
+    hand at each (its own curve: a² ≤ 2·BRAKE·j·(v_max − v)), with a 50 % margin."""
+    worst = 0.0
+    ba, bj = BRAKE * a, BRAKE * j
+    for k in range(21):
+        v = v_max * k / 20.0
+        acc = min(a, math.sqrt(2.0 * bj * (v_max - v)))
+        tau = acc / bj
+        d, s = v * tau + acc * tau * tau / 3.0, v + 0.5 * acc * tau
+        worst = max(worst, d + s * s / (2.0 * ba) + s * ba / (2.0 * bj))
+    return 1.5 * worst + 1e-3
