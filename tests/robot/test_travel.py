@@ -135,7 +135,7 @@ def test_near_the_finger_the_speed_is_capped_and_touch_down_is_slow():
     assert speeds.max() > 0.4  # far from the finger it still travels fast
     at_touch = dists < 0.001
     assert at_touch.any() and speeds[at_touch].max() <= 0.010 + 1e-12
-    assert lim.cap_at(None) == 0.6 and lim.cap_at(0.0) == pytest.approx(lim.near_speed) and lim.cap_at(0.04) == 0.6
+    assert lim.cap_at(None) == 0.6 and lim.cap_at(0.0) == pytest.approx(lim.near_speed) and lim.cap_at(2 * lim.near_m + lim.margin_m) == 0.6
     assert lim.normal_cap_at(0.0) == pytest.approx(0.010) and lim.normal_cap_at(None) == 0.6
 
 
@@ -242,7 +242,7 @@ def test_the_caps_act_on_the_finger_predicted_ahead():
         raise AssertionError("never slowed down")
 
     ahead, now = distance_when_slow(True), distance_when_slow(False)
-    assert now <= TravelLimiter().near_m + 1e-3
+    assert now <= TravelLimiter().near_m + TravelLimiter().margin_m + 1e-3
     assert ahead > now + 0.5 * 0.5 * TravelLimiter().lead_s
 
 
