@@ -50,6 +50,8 @@ def test_bad_limits_are_refused_with_the_field_named():
         TravelLimiter(0.5, -1.0)
     with pytest.raises(ConfigError, match="travel.max_speed_m_s"):
         TravelLimiter(math.nan, 10.0)
+    with pytest.raises(ConfigError, match="travel.max_jerk_m_s3"):
+        TravelLimiter(0.5, 10.0, 0.0)
 
 
 def _move(travel, dy: float, *, heat: float = 0.0, ticks: int = 600):
@@ -226,7 +228,7 @@ def test_the_caps_act_on_the_finger_predicted_ahead():
     limiter is down to the near-finger speed while the finger is still ≈ 0.5 m/s·``lead_s`` further
     out than told only the distance now (the device follows its output some 30 ms late)."""
     def distance_when_slow(with_state):
-        lim = TravelLimiter(0.6, 40.0)
+        lim = TravelLimiter.for_approach(0.6, 40.0)
         lim.reset(0.0, 0.0, 0.0)
         f0, vf = 0.12, -0.5
         fast = False
@@ -242,8 +244,8 @@ def test_the_caps_act_on_the_finger_predicted_ahead():
         raise AssertionError("never slowed down")
 
     ahead, now = distance_when_slow(True), distance_when_slow(False)
-    assert now <= TravelLimiter().near_m + TravelLimiter().margin_m + 1e-3
-    assert ahead > now + 0.5 * 0.5 * TravelLimiter().lead_s
+    assert now <= TravelLimiter.for_approach().near_m + TravelLimiter.for_approach().margin_m + 1e-3
+    assert ahead > now + 0.5 * 0.5 * TravelLimiter.for_approach().lead_s
 
 
 def test_a_target_that_stops_dead_is_not_overrun():

@@ -46,27 +46,32 @@ import math
 
 from vishap._core.errors import ConfigError
 
-__all__ = ["TravelLimiter", "DEFAULT_SPEED_M_S", "DEFAULT_ACCEL_M_S2", "DEFAULT_JERK_M_S3", "NEAR_M", "NEAR_SPEED_M_S", "TOUCH_SPEED_M_S"]
+__all__ = ["TravelLimiter", "DEFAULT_SPEED_M_S", "DEFAULT_ACCEL_M_S2", "DEFAULT_JERK_M_S3", "APPROACH_JERK_M_S3", "NEAR_M", "NEAR_SPEED_M_S", "TOUCH_SPEED_M_S"]
 
 #: The demos' limits, chosen on the wall demo (docs/robot.md, "Travel limits"): no heat limiting, the
 #: meeting as fast as without limits.
 DEFAULT_SPEED_M_S = 0.6
 DEFAULT_ACCEL_M_S2 = 40.0
-#: the jerk limit: the force the PD asks for to accelerate the arm rises over a/j (20 ms at 40 m/s²)
+#: the limiter's default jerk: none (the acceleration may switch in one tick, as before the jerk limit)
+DEFAULT_JERK_M_S3 = math.inf
+#: within this distance of the fingertip the device's speed is capped (issue 16: ≤ 0.25 m/s within 20 mm)
+NEAR_M = 0.020
+NEAR_SPEED_M_S = 0.25
+
+# The approach configuration (:meth:`TravelLimiter.for_approach`, what the demos and live mode run):
+#: the jerk limit: the force the PD asks for to accelerate the arm rises over a/j (40 ms at 40 m/s²)
 #: instead of in one tick, so travel puts no steps through the controller's 30 Hz boxcar (docs/robot.md)
-DEFAULT_JERK_M_S3 = 1000.0
+APPROACH_JERK_M_S3 = 1000.0
 #: how far ahead (s) the caps near the finger look: the device follows this output ≈ 30 ms late
 #: (the boxcar's half interval, Eq. 5's low-pass, the PD), and the finger keeps moving meanwhile
-LEAD_S = 0.040
+APPROACH_LEAD_S = 0.040
 #: what the estimated fingertip's distance may be too long by (m): the world's estimate in the wall
 #: demos, extrapolated to the servo tick, was up to 11–15 mm further than the true pad (p99; p90
 #: 5–7 mm; median 0), and the device then crossed the true 20 mm at 0.3–0.37 m/s
-MARGIN_M = 0.010
-#: within this distance of the fingertip the device's speed is capped (issue 16: ≤ 0.25 m/s within 20 mm)
-NEAR_M = 0.020
-#: the output's cap there: 12 % under the goal, the most the arm overran its target's speed in the
-#: demos while the PD took up the lag of a turn (0.26–0.27 m/s measured with the cap at 0.25)
-NEAR_SPEED_M_S = 0.22
+APPROACH_MARGIN_M = 0.010
+#: the output's cap near the finger: 12 % under the goal, the most the arm overran its target's speed
+#: in the demos while the PD took up the lag of a turn (0.26–0.27 m/s measured with the cap at 0.25)
+APPROACH_NEAR_SPEED_M_S = 0.22
 #: the cap within TOUCH_M of the finger: the device touches down at most this fast
 TOUCH_SPEED_M_S = 0.010
 TOUCH_M = 0.001
@@ -87,9 +92,10 @@ class TravelLimiter:
     def __init__(self, max_speed_m_s: float = DEFAULT_SPEED_M_S, max_accel_m_s2: float = DEFAULT_ACCEL_M_S2,
                  max_jerk_m_s3: float = DEFAULT_JERK_M_S3, *, settle_gain_hz: float = 100.0, min_scale: float = MIN_SCALE,
                  near_m: float = NEAR_M, near_speed_m_s: float = NEAR_SPEED_M_S, touch_speed_m_s: float = TOUCH_SPEED_M_S,
-                 lead_s: float = LEAD_S, margin_m: float = MARGIN_M):
-        for name, v in (("max_speed_m_s", max_speed_m_s), ("max_accel_m_s2", max_accel_m_s2),
-                        ("max_jerk_m_s3", max_jerk_m_s3), ("settle_gain_hz", settle_gain_hz),
+                 lead_s: float = 0.0, margin_m: float = 0.0):
+        if not (isinstance(max_jerk_m_s3, (int, float)) and max_jerk_m_s3 > 0 and max_jerk_m_s3 == max_jerk_m_s3):
+            raise ConfigError(f"must be a number > 0 (inf: unlimited), got {max_jerk_m_s3!r}", field="travel.max_jerk_m_s3")
+        for name, v in (("max_speed_m_s", max_speed_m_s), ("max_accel_m_s2", max_accel_m_s2), ("settle_gain_hz", settle_gain_hz),
                         ("near_m", near_m - TOUCH_M), ("near_speed_m_s", near_speed_m_s), ("touch_speed_m_s", touch_speed_m_s)):
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"must be a finite number > 0, got {v!r}", field=f"travel.{name}")
@@ -118,6 +124,16 @@ class TravelLimiter:
         self._a = (0.0, 0.0, 0.0)
         self._t = None
         self.ready = False
+
+    @classmethod
+    def for_approach(cls, max_speed_m_s: float = DEFAULT_SPEED_M_S, max_accel_m_s2: float = DEFAULT_ACCEL_M_S2):
+        """The approach configuration: the jerk limit, the caps near the finger on its state
+        ``APPROACH_LEAD_S`` ahead with ``APPROACH_MARGIN_M`` for the estimate's error, 0.22 m/s near it.
+        Not the default: on the panel's routed moves (way-points over the shelf) the jerk-limited
+        device reached the third key too late in the closed-loop test and cut through an object in 4
+        of 20 ``bench world`` approaches (docs/robot.md)."""
+        return cls(max_speed_m_s, max_accel_m_s2, APPROACH_JERK_M_S3, near_speed_m_s=APPROACH_NEAR_SPEED_M_S,
+                   lead_s=APPROACH_LEAD_S, margin_m=APPROACH_MARGIN_M)
 
     def reset(self, x, y, z, vx=0.0, vy=0.0, vz=0.0) -> None:
         """Start from the arm's own position and velocity (m, m/s)."""
@@ -213,7 +229,7 @@ class TravelLimiter:
             nx = ny = nz = 0.0
         else:
             nx, ny, nz = normal
-        if finger is not None:  # the finger lead_s ahead, against where the device will be by then
+        if finger is not None and self.lead_s > 0.0:  # the finger lead_s ahead, against where the device will be then
             fx, fy, fz, fvx, fvy, fvz = finger
             L = self.lead_s
             rx, ry, rz = fx + fvx * L - cx, fy + fvy * L - cy, fz + fvz * L - cz
