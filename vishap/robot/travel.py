@@ -26,14 +26,18 @@ The output's speed — the closing speed *and* the target's own velocity togethe
 ``max_speed_m_s``. Near the finger it is capped further, in two parts (``finger_m``, ``gap_m`` and
 ``normal`` of :meth:`TravelLimiter.step`):
 
-* within ``near_m`` (20 mm) of the estimated fingertip, plus ``margin_m`` (10 mm) for the estimate's
-  error, the speed is at most ``near_speed_m_s``
-  (0.22 m/s: under the goal of 0.25 by the arm's overrun of its target's speed), falling to it
-  linearly from ``max_speed_m_s`` ``near_m`` further out, so the device
-  never sweeps past the finger fast;
+* within ``near_m`` (20 mm) of the estimated fingertip, plus ``margin_m`` for the estimate's error,
+  the speed is at most ``near_speed_m_s`` (0.25 m/s), falling to it linearly from ``max_speed_m_s``
+  ``near_m`` further out, so the device never sweeps past the finger fast;
 * the speed *towards* the finger along the subject's normal falls linearly with the finger's height
   over the device's face (``gap_m``) from ``near_speed_m_s`` at ``near_m`` to ``touch_speed_m_s``
   (10 mm/s) at 1 mm, so the device touches down slowly.
+
+:meth:`TravelLimiter.for_approach` is what the demos and live mode run: the jerk limit (1000 m/s³),
+the caps on the finger's state 40 ms ahead (``lead_s``) with a 10 mm ``margin_m``, 0.22 m/s near
+the finger (the arm overran its target's speed by up to 8 % there). The defaults leave the jerk
+unlimited and the caps on the distance now: the world's closed loop routes the device over the
+panel's shelf through way-points, and a jerk-limited device turned there too slowly (docs/robot.md).
 
 Sideways moves are left at the near-finger cap: a cap on the 3-D distance slowed the device's
 last lateral correction and its run-up with the finger as much as the touch-down (docs/world.md).
