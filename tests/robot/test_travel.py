@@ -50,6 +50,8 @@ def test_bad_limits_are_refused_with_the_field_named():
         TravelLimiter(0.5, -1.0)
     with pytest.raises(ConfigError, match="travel.max_speed_m_s"):
         TravelLimiter(math.nan, 10.0)
+    with pytest.raises(ConfigError, match="travel.max_jerk_m_s3"):
+        TravelLimiter(0.5, 10.0, 0.0)
 
 
 def _move(travel, dy: float, *, heat: float = 0.0, ticks: int = 600):
@@ -131,11 +133,11 @@ def test_near_the_finger_the_speed_is_capped_and_touch_down_is_slow():
         dists.append(d)
     speeds, dists = np.array(speeds), np.array(dists)
     near = dists < 0.020
-    assert near.any() and speeds[near].max() <= 0.25 + 1e-9
+    assert near.any() and speeds[near].max() <= lim.near_speed + 1e-9 and lim.near_speed <= 0.25
     assert speeds.max() > 0.4  # far from the finger it still travels fast
     at_touch = dists < 0.001
     assert at_touch.any() and speeds[at_touch].max() <= 0.010 + 1e-12
-    assert lim.cap_at(None) == 0.6 and lim.cap_at(0.0) == pytest.approx(0.25) and lim.cap_at(0.04) == 0.6
+    assert lim.cap_at(None) == 0.6 and lim.cap_at(0.0) == pytest.approx(lim.near_speed) and lim.cap_at(2 * lim.near_m + lim.margin_m) == 0.6
     assert lim.normal_cap_at(0.0) == pytest.approx(0.010) and lim.normal_cap_at(None) == 0.6
 
 
@@ -148,7 +150,7 @@ def test_with_a_normal_only_the_speed_towards_the_finger_falls_to_the_touch_spee
     lim.reset(0.0, 0.0, 0.0)
     out = [lim.step(k * 1e-3, 0.03, 0.0, 0.0, 0.0, 0.0, 0.0, finger_m=0.005, gap_m=0.0005, normal=n) for k in range(100)]
     v = np.array([o[3:] for o in out])
-    assert np.linalg.norm(v, axis=1).max() == pytest.approx(0.25)
+    assert np.linalg.norm(v, axis=1).max() == pytest.approx(lim.near_speed)
     lim.reset(0.0, 0.0, 0.0)
     out = [lim.step(k * 1e-3, 0.0, 0.0, 0.03, 0.0, 0.0, 0.0, finger_m=0.005, gap_m=0.0005, normal=n) for k in range(100)]
     vz = np.array([o[5] for o in out])
@@ -156,7 +158,7 @@ def test_with_a_normal_only_the_speed_towards_the_finger_falls_to_the_touch_spee
     # away from the finger (down the normal) only the near-finger cap applies
     lim.reset(0.0, 0.0, 0.0)
     out = [lim.step(k * 1e-3, 0.0, 0.0, -0.03, 0.0, 0.0, 0.0, finger_m=0.005, gap_m=0.0005, normal=n) for k in range(100)]
-    assert min(o[5] for o in out) == pytest.approx(-0.25)
+    assert min(o[5] for o in out) == pytest.approx(-lim.near_speed)
 
 
 def test_anchor_follows_the_arm_only_where_the_object_gain_let_go():
@@ -172,3 +174,119 @@ def test_anchor_follows_the_arm_only_where_the_object_gain_let_go():
     out = lim.step(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     out = lim.step(0.001, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     assert out[2] < -0.004 and abs(out[5]) <= 0.2 + 40.0 * 0.001 + 1e-9
+
+
+@pytest.mark.parametrize("accel", [10.0, 40.0])
+def test_jumps_of_every_size_are_travelled_with_bounded_jerk_and_without_overshoot(accel):
+    """0.2–50 mm jumps in three directions: speed, acceleration and jerk stay within their limits
+    (the acceleration changes by at most jerk·dt a tick: the force the PD asks for has no steps), the
+    remaining distance never grows, and the output ends on the target."""
+    jerk, dt = 2000.0, 1e-3
+    for d in (0.0002, 0.001, 0.003, 0.008, 0.012, 0.016, 0.02, 0.03, 0.05):
+        for direction in ((1.0, 0.0, 0.0), (0.0, -0.6, 0.8), (0.48, 0.6, -0.64)):
+            goal = d * np.asarray(direction)
+            xs, vs, _ = _run(TravelLimiter(0.6, accel, jerk), goal, seconds=0.4)
+            acc = np.diff(vs, axis=0) / dt
+            assert np.linalg.norm(vs, axis=1).max() <= 0.6 + 1e-9
+            assert np.linalg.norm(acc, axis=1).max() <= accel * (1 + 1e-9)
+            assert np.linalg.norm(np.diff(acc, axis=0), axis=1).max() / dt <= jerk * (1 + 1e-6)
+            dist = np.linalg.norm(xs - goal, axis=1)
+            assert np.all(np.diff(dist) <= 1e-9), (d, direction)
+            assert dist[-1] < 1e-6
+
+
+def test_the_jerk_limit_takes_the_steps_out_of_the_force_the_servo_asks_for():
+    """The same 20 mm move through the servo: with the jerk limit the PD's force changes by a
+    fraction of what the bang-bang acceleration (an unlimited jerk) switches in one tick, and the move
+    takes at most a little longer."""
+    bang = _force_steps(TravelLimiter(0.6, 40.0, 1e9))
+    smooth = _force_steps(TravelLimiter(0.6, 40.0, 1000.0))
+    assert bang[0] > 0.4 and smooth[0] < 0.25 * bang[0]
+    assert smooth[1] < bang[1] + 0.05
+
+
+def _force_steps(travel, dy: float = 0.02):
+    """(largest |ΔF_pd| in one tick, time to within 1 mm) for a ``dy`` target jump after settling."""
+    from vishap.robot.gains import load_gains
+
+    servo = build_servo(policy="hold", travel=travel, gains=load_gains(override={"vision_hz": 0.0})[0])
+    ctrl = servo.controller
+    for k in range(700):
+        servo.tick(k * 1e-3)
+    goal = np.array(ctrl.p) + np.array([0.0, dy, 0.0])
+    F, t_in = [], None
+    for k in range(700, 1000):
+        servo.tick(k * 1e-3, goal)
+        F.append(ctrl.F_pd)
+        if t_in is None and np.linalg.norm(np.array(ctrl.p) - goal) < 1e-3:
+            t_in = (k - 700) * 1e-3
+    return float(np.linalg.norm(np.diff(np.array(F), axis=0), axis=1).max()), t_in
+
+
+def test_the_caps_act_on_the_finger_predicted_ahead():
+    """A finger closing at 0.5 m/s on a device travelling towards it: given the finger's state, the
+    limiter is down to the near-finger speed while the finger is still ≈ 0.5 m/s·``lead_s`` further
+    out than told only the distance now (the device follows its output some 30 ms late)."""
+    def distance_when_slow(with_state):
+        lim = TravelLimiter.for_approach(0.6, 40.0)
+        lim.reset(0.0, 0.0, 0.0)
+        f0, vf = 0.12, -0.5
+        fast = False
+        for k in range(200):
+            t = k * 1e-3
+            f = f0 + vf * t
+            d = f - lim._x[0]
+            out = lim.step(t, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0, finger_m=abs(d),
+                           finger=(f, 0.0, 0.0, vf, 0.0, 0.0) if with_state else None)
+            fast = fast or out[3] > 0.4
+            if fast and out[3] <= lim.near_speed + 1e-9:
+                return d
+        raise AssertionError("never slowed down")
+
+    ahead, now = distance_when_slow(True), distance_when_slow(False)
+    assert now <= TravelLimiter.for_approach().near_m + TravelLimiter.for_approach().margin_m + 1e-3
+    assert ahead > now + 0.5 * 0.5 * TravelLimiter.for_approach().lead_s
+
+
+def test_a_target_that_stops_dead_is_not_overrun():
+    """The interpolating shaper's target runs at 0.3 m/s to its newest sample and stops there: told
+    where it will stop (``rest``), the jerk-limited output brakes in time and never passes it; not
+    told, it overruns by millimetres (it cannot stop dead)."""
+    def run(with_rest):
+        lim = TravelLimiter(0.6, 40.0, 1000.0)
+        lim.reset(0.0, 0.0, 0.0)
+        xs = []
+        for k in range(300):
+            t = k * 1e-3
+            x, v = (0.3 * t, 0.3) if t < 0.05 else (0.015, 0.0)
+            xs.append(lim.step(t, x, 0.0, 0.0, v, 0.0, 0.0, rest=(0.015, 0.0, 0.0) if with_rest else None)[0])
+        return np.array(xs)
+
+    told, blind = run(True), run(False)
+    assert told.max() <= 0.015 + 1e-9 and abs(told[-1] - 0.015) < 1e-6
+    assert blind.max() > 0.015 + 0.001
+
+
+def test_the_output_brakes_to_stay_inside_the_workspace_box():
+    """A target beyond the box's face, approached at full speed: the output slows down on its own and
+    stops on the face (the controller would otherwise clamp the target dead at the face and the arm
+    overrun it)."""
+    lim = TravelLimiter(0.6, 40.0, 1000.0)
+    lim.box = ((-0.1, -0.1, -0.1), (0.03, 0.1, 0.1))
+    lim.reset(-0.05, 0.0, 0.0, 0.6, 0.0, 0.0)
+    out = np.array([lim.step(k * 1e-3, 0.06, 0.0, 0.0, 0.0, 0.0, 0.0) for k in range(400)])
+    assert out[:, 0].max() <= 0.03 + 1e-7 and out[-1, 0] == pytest.approx(0.03, abs=1e-6)
+    assert np.linalg.norm(np.diff(out[:, 3:], axis=0), axis=1).max() <= 40.0e-3 + 1e-9
+
+
+def test_the_servo_gives_its_limiter_the_workspace_box_and_the_shapers_rest_point():
+    servo = build_servo(policy="interpolate", travel=TravelLimiter())
+    lim = servo.controller.limits
+    assert servo.travel.box == (tuple(lim.workspace_min), tuple(lim.workspace_max))
+    servo.shaper.push(0.0, 0.1, 0.0, -0.1)
+    servo.shaper.push(0.033, 0.11, 0.0, -0.1)
+    assert servo.shaper.rest() == (0.11, 0.0, -0.1)
+    ex = build_servo(policy="extrapolate", travel=TravelLimiter()).shaper
+    ex.push(0.0, 0.1, 0.0, -0.1)
+    ex.push(0.033, 0.11, 0.0, -0.1)
+    assert ex.rest()[0] == pytest.approx(0.11 + 0.01 / 0.033 * ex.horizon * 0.033)

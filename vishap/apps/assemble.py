@@ -83,7 +83,7 @@ def make_cycle(cfg: DemoConfig, scene, log, *, device: str = "sim", finger=None,
     po = scene.passive_object
     dev = (open_device("sim", passive_object=po.for_mujoco(), substeps=cfg.substeps, sensor=cfg.encoder)
            if device == "sim" else open_device(device))
-    travel = None if cfg.travel_speed_m_s is None else TravelLimiter(cfg.travel_speed_m_s, cfg.travel_accel_m_s2)
+    travel = None if cfg.travel_speed_m_s is None else TravelLimiter.for_approach(cfg.travel_speed_m_s, cfg.travel_accel_m_s2)
     step = make_servo_step(dev, scene, policy=cfg.servo_policy, travel=travel, retreat_m=cfg.retreat_m,
                            stale_after_s=cfg.stale_after_s, retreat_after_s=cfg.retreat_after_s)
     return ServoCycle(step, scene_object=scene.objects[0], log=log, finger=finger, half_size_m=po.half_size_m,

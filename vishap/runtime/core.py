@@ -382,7 +382,11 @@ class ServoStep:
             key = self._key
         self._key, self.last_action = key, action
         extra = F_law if F_law is not None else self.contact.F_hold
+        finger = None
+        if finger_m == finger_m:  # the tracked pad point and velocity now, in the end-effector's coordinates
+            (fx, fy, fz), v, m, el = rec.finger, rec.finger_velocity, self.mount, t - rec.finger_t
+            finger = (fx + v[0] * el - m[0], fy + v[1] * el - m[1], fz + v[2] * el - m[2], *v)
         self.servo.tick(t, None if key is None else X_ee, extra, t_sample=key, finger_m=finger_m, gap_m=gap,
-                        normal=normal, joints=joints)
+                        normal=normal, finger=finger, joints=joints)
         return ServoTick(action, X_ee, F_law, dev, p_dev, fault, self.contact.state_code, scale, finger_m, pressed,
                          touch_in)
