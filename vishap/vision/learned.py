@@ -186,10 +186,11 @@ class HandLandmarkModel:
 
     # ------------------------------------------------------------------ palm detection
     def detect_palms(self, image_rgb: np.ndarray, max_palms: int = 2, min_score: float | None = None,
-                     zoom: float = 1.0) -> list[tuple[HandRect, float]]:
+                     zoom: float = 1.0, *, bgr: bool = False) -> list[tuple[HandRect, float]]:
         """Palms of an RGB image as hand rects (best first) with their scores (at least ``min_score``,
         default the model's ``min_palm_score``). ``zoom`` > 1 shrinks the image to 1/zoom of the
-        network's input (centred, zero border), for hands too large for it at full size."""
+        network's input (centred, zero border), for hands too large for it at full size.
+        ``bgr``: the image is BGR, reordered after the resize (the same input, on 1/10 of the pixels)."""
         if not zoom >= 1.0:
             raise ConfigError(f"palm zoom must be ≥ 1, got {zoom}", field="zoom")
         h, w = image_rgb.shape[:2]
@@ -197,9 +198,9 @@ class HandLandmarkModel:
         s = n / (max(w, h) * zoom)
         nw, nh = int(round(w * s)), int(round(h * s))
         px, py = (n - nw) // 2, (n - nh) // 2
+        small = cv2.resize(image_rgb, (nw, nh), interpolation=cv2.INTER_AREA)
         inp = np.zeros((n, n, 3), np.float32)
-        inp[py:py + nh, px:px + nw] = cv2.resize(image_rgb, (nw, nh), interpolation=cv2.INTER_AREA)
-        inp *= 1.0 / 255.0
+        inp[py:py + nh, px:px + nw] = _to_input(small, bgr)
         self._palm.set_tensor(self._palm_in, inp[None])
         self._palm.invoke()
         raw = self._palm.get_tensor(self._palm_boxes)[0]
@@ -225,10 +226,11 @@ class HandLandmarkModel:
         return palms
 
     # ------------------------------------------------------------------ landmarks
-    def landmarks(self, image_rgb: np.ndarray, rect: HandRect) -> HandLandmarks:
-        """The 21 landmarks in ``rect`` (image pixels) and the hand-presence score."""
+    def landmarks(self, image_rgb: np.ndarray, rect: HandRect, *, bgr: bool = False) -> HandLandmarks:
+        """The 21 landmarks in ``rect`` (image pixels) and the hand-presence score (``bgr``: as
+        :meth:`detect_palms`)."""
         n = self.LANDMARK_SIZE
-        crop = rect.crop(image_rgb, n).astype(np.float32) * (1.0 / 255.0)
+        crop = _to_input(rect.crop(image_rgb, n), bgr)
         self._lm.set_tensor(self._lm_in, crop[None])
         self._lm.invoke()
         xyz = self._lm.get_tensor(self._lm_xyz)[0].reshape(21, 3).astype(np.float64)
@@ -237,6 +239,14 @@ class HandLandmarkModel:
         uvz[:, :2] = rect.to_image(xyz[:, :2], n)
         uvz[:, 2] = xyz[:, 2] * (rect.size / n)
         return HandLandmarks(uvz, presence, rect)
+
+
+def _to_input(small: np.ndarray, bgr: bool) -> np.ndarray:
+    """A network's float input in [0, 1] from a uint8 RGB (or, ``bgr``, BGR) image. Resampling treats
+    each channel alike, so reordering the small image gives the input that reordering the frame would."""
+    if bgr:
+        small = cv2.cvtColor(small, cv2.COLOR_BGR2RGB)
+    return small.astype(np.float32) * np.float32(1.0 / 255.0)
 
 
 def _weighted_nms(ctr: np.ndarray, wh: np.ndarray, score: np.ndarray, iou_min: float):
@@ -378,35 +388,34 @@ class LearnedDetector:
         ``use_roi``: look only in the followed region when there is one (default: in video mode).
         """
         _check_image(image_bgr)
-        rgb = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2RGB)
         timings: dict = {}
         use_roi = (self.config.mode == "video") if use_roi is None else use_roi
         hand = None
         if use_roi and self._roi is not None:
             t0 = time.perf_counter()
-            hand = self.model.landmarks(rgb, self._roi)
+            hand = self.model.landmarks(image_bgr, self._roi, bgr=True)
             timings["landmarks_ms"] = 1e3 * (time.perf_counter() - t0)
             if hand.presence < self.config.min_presence:
                 hand = None
         if hand is None:
-            hand = self._find_hand(rgb, timings)
+            hand = self._find_hand(image_bgr, timings)
         self._roi = roi_from_landmarks(hand.uv) if hand is not None else None
         self.last_hand = hand
         return hand, timings
 
-    def _find_hand(self, rgb: np.ndarray, timings: dict) -> HandLandmarks | None:
+    def _find_hand(self, image_bgr: np.ndarray, timings: dict) -> HandLandmarks | None:
         """Palm candidates over the whole frame at each zoom, best palm score first, each verified by
         the landmark model's presence score (see :class:`LearnedConfig`)."""
         c = self.config
         t0 = time.perf_counter()
         palms = [(score, k, rect) for k, z in enumerate(c.palm_zooms)
-                 for rect, score in self.model.detect_palms(rgb, max_palms=c.palm_candidates,
-                                                            min_score=c.min_palm_score, zoom=z)]
+                 for rect, score in self.model.detect_palms(image_bgr, max_palms=c.palm_candidates,
+                                                            min_score=c.min_palm_score, zoom=z, bgr=True)]
         palms.sort(key=lambda p: (-p[0], p[1]))  # ties: the smaller zoom first
         timings["palm_ms"] = timings.get("palm_ms", 0.0) + 1e3 * (time.perf_counter() - t0)
         for k, (score, _, rect) in enumerate(palms[:c.palm_candidates]):
             t0 = time.perf_counter()
-            hand = self.model.landmarks(rgb, rect)
+            hand = self.model.landmarks(image_bgr, rect, bgr=True)
             timings["landmarks_ms"] = timings.get("landmarks_ms", 0.0) + 1e3 * (time.perf_counter() - t0)
             if hand.presence >= c.min_presence:
                 hand.palm_score = score
