@@ -172,6 +172,46 @@ def test_weak_palm_candidates_find_no_hand_in_a_real_hand_free_scene(model, name
     assert not d.found and "no hand" in d.reason
 
 
+@pytest.mark.parametrize("zoom", [1.0, 1.5, 2.0])
+def test_bgr_input_gives_the_networks_exactly_the_rgb_input(model, zoom):
+    """The detector hands the networks the BGR frame and reorders the channels after the resize or
+    crop (not on the full frame): boxes, scores and landmarks are bit for bit those of the RGB frame."""
+    img, _ = real_photo("TI1K_IMAGE_0001.jpg")
+    rgb = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    from_rgb = model.detect_palms(rgb, 2, min_score=0.1, zoom=zoom)
+    from_bgr = model.detect_palms(img, 2, min_score=0.1, zoom=zoom, bgr=True)
+    assert from_rgb and from_rgb == from_bgr
+    a, b = model.landmarks(rgb, from_rgb[0][0]), model.landmarks(img, from_rgb[0][0], bgr=True)
+    assert np.array_equal(a.uvz, b.uvz) and a.presence == b.presence
+    # the reorder matters: the BGR frame read as RGB gives other landmarks
+    assert not np.array_equal(model.landmarks(img, from_rgb[0][0]).uvz, a.uvz)
+
+
+def test_a_sure_confirmed_palm_ends_the_zoom_search(model):
+    """A zoom-1 box at least ``palm_sure_score`` that the landmark model confirms is taken without the
+    other zooms' palm runs; without the option, or below the score, every zoom runs."""
+    img, tip = real_photo("TI1K_IMAGE_0001.jpg")
+    top = model.detect_palms(img, 2, min_score=0.1, bgr=True)[0][1]
+    runs = []
+    real = model.detect_palms
+
+    def counted(*a, **k):
+        runs.append(k.get("zoom"))
+        return real(*a, **k)
+
+    model.detect_palms = counted
+    try:
+        for sure, expected in ((0.0, [1.0]), (None, [1.0, 1.5, 2.0]), (min(1.0, top + 1e-6), [1.0, 1.5, 2.0])):
+            runs.clear()
+            d = learned.LearnedDetector(learned.LearnedConfig(palm_sure_score=sure), model=model).process(img, 0.0)
+            assert runs == expected, sure
+            assert d.found and np.hypot(*(d.tip_end_uv - tip)) < 20.0
+    finally:
+        del model.detect_palms
+    with pytest.raises(ConfigError, match="palm_sure_score"):
+        learned.LearnedConfig(palm_sure_score=1.5)
+
+
 def test_palm_zoom_and_candidate_settings_are_checked():
     with pytest.raises(ConfigError, match="palm_zooms"):
         learned.LearnedConfig(palm_zooms=(1.0, 0.5))

@@ -186,10 +186,11 @@ class HandLandmarkModel:
 
     # ------------------------------------------------------------------ palm detection
     def detect_palms(self, image_rgb: np.ndarray, max_palms: int = 2, min_score: float | None = None,
-                     zoom: float = 1.0) -> list[tuple[HandRect, float]]:
+                     zoom: float = 1.0, *, bgr: bool = False) -> list[tuple[HandRect, float]]:
         """Palms of an RGB image as hand rects (best first) with their scores (at least ``min_score``,
         default the model's ``min_palm_score``). ``zoom`` > 1 shrinks the image to 1/zoom of the
-        network's input (centred, zero border), for hands too large for it at full size."""
+        network's input (centred, zero border), for hands too large for it at full size.
+        ``bgr``: the image is BGR, reordered after the resize (the same input, on 1/10 of the pixels)."""
         if not zoom >= 1.0:
             raise ConfigError(f"palm zoom must be ≥ 1, got {zoom}", field="zoom")
         h, w = image_rgb.shape[:2]
@@ -197,9 +198,9 @@ class HandLandmarkModel:
         s = n / (max(w, h) * zoom)
         nw, nh = int(round(w * s)), int(round(h * s))
         px, py = (n - nw) // 2, (n - nh) // 2
+        small = cv2.resize(image_rgb, (nw, nh), interpolation=cv2.INTER_AREA)
         inp = np.zeros((n, n, 3), np.float32)
-        inp[py:py + nh, px:px + nw] = cv2.resize(image_rgb, (nw, nh), interpolation=cv2.INTER_AREA)
-        inp *= 1.0 / 255.0
+        inp[py:py + nh, px:px + nw] = _to_input(small, bgr)
         self._palm.set_tensor(self._palm_in, inp[None])
         self._palm.invoke()
         raw = self._palm.get_tensor(self._palm_boxes)[0]
@@ -225,10 +226,11 @@ class HandLandmarkModel:
         return palms
 
     # ------------------------------------------------------------------ landmarks
-    def landmarks(self, image_rgb: np.ndarray, rect: HandRect) -> HandLandmarks:
-        """The 21 landmarks in ``rect`` (image pixels) and the hand-presence score."""
+    def landmarks(self, image_rgb: np.ndarray, rect: HandRect, *, bgr: bool = False) -> HandLandmarks:
+        """The 21 landmarks in ``rect`` (image pixels) and the hand-presence score (``bgr``: as
+        :meth:`detect_palms`)."""
         n = self.LANDMARK_SIZE
-        crop = rect.crop(image_rgb, n).astype(np.float32) * (1.0 / 255.0)
+        crop = _to_input(rect.crop(image_rgb, n), bgr)
         self._lm.set_tensor(self._lm_in, crop[None])
         self._lm.invoke()
         xyz = self._lm.get_tensor(self._lm_xyz)[0].reshape(21, 3).astype(np.float64)
@@ -237,6 +239,14 @@ class HandLandmarkModel:
         uvz[:, :2] = rect.to_image(xyz[:, :2], n)
         uvz[:, 2] = xyz[:, 2] * (rect.size / n)
         return HandLandmarks(uvz, presence, rect)
+
+
+def _to_input(small: np.ndarray, bgr: bool) -> np.ndarray:
+    """A network's float input in [0, 1] from a uint8 RGB (or, ``bgr``, BGR) image. Resampling treats
+    each channel alike, so reordering the small image gives the input that reordering the frame would."""
+    if bgr:
+        small = cv2.cvtColor(small, cv2.COLOR_BGR2RGB)
+    return small.astype(np.float32) * np.float32(1.0 / 255.0)
 
 
 def _weighted_nms(ctr: np.ndarray, wh: np.ndarray, score: np.ndarray, iou_min: float):
@@ -321,6 +331,16 @@ class LearnedConfig:
     (zoom 1 alone with candidates: PCK@30 0.930; zooms 1 and 2: 0.982; threshold 0.05: the same
     PCK, 0.7 % false hands). ``LearnedConfig(min_palm_score=0.5, palm_candidates=1,
     palm_zooms=(1.0,))`` is MediaPipe's rule (:data:`MEDIAPIPE_PALM_RULE`).
+
+    The zooms cost a palm run each, most of a search. A box that scores ≥ ``palm_sure_score`` (0.9)
+    at zoom 1 and that the landmark model confirms is taken without running the other zooms (not
+    provably the full search's pick: a later zoom could score higher). All 900 train photos, the
+    hybrid with and without it: the same photos found, PCK@30 the same on both splits (fit 0.990,
+    held out 0.963), PCK@10 0.842 → 0.848 and 0.870 → 0.883; 730 photos give the same output,
+    170 another box's landmarks (tip moved 1.7 px median, 19.6 px at most); per photo 68.6 → 47.8
+    ms median; the ``learned`` detector alone: PCK@30 the same (0.990, 0.960), 708 photos the same
+    output, 89.5 → 63.8 ms median. The threshold was set once from the zoom-1 scores of 100 photos (median 0.89), not
+    swept.
     """
 
     mode: str = "image"               # "image": full frame every frame; "video": follow the hand's region
@@ -328,6 +348,9 @@ class LearnedConfig:
     palm_candidates: int = 2          # candidates verified by the landmark model, best palm score first
     palm_zooms: tuple = (1.0, 1.5, 2.0)  # the frame at 1/zoom of the palm network's input
     min_presence: float = 0.5         # MediaPipe's min_hand_presence_confidence
+    # a box scoring at least this at an earlier zoom is verified at once, and when the landmark model
+    # confirms it the later zooms are not run (None: every zoom runs; see the class notes)
+    palm_sure_score: float | None = 0.9
     num_threads: int = 1
 
     def __post_init__(self) -> None:
@@ -342,6 +365,9 @@ class LearnedConfig:
             raise ConfigError(f"palm_candidates must be ≥ 1, got {self.palm_candidates}", field="palm_candidates")
         if int(self.num_threads) < 1:
             raise ConfigError(f"num_threads must be ≥ 1, got {self.num_threads}", field="num_threads")
+        if self.palm_sure_score is not None and not 0.0 <= float(self.palm_sure_score) <= 1.0:
+            raise ConfigError(f"palm_sure_score must lie in [0, 1] or be None, got {self.palm_sure_score}",
+                              field="palm_sure_score")
 
 
 # MediaPipe's own choice of the hand in a frame: the best palm box on the letterboxed frame, if ≥ 0.5
@@ -378,39 +404,55 @@ class LearnedDetector:
         ``use_roi``: look only in the followed region when there is one (default: in video mode).
         """
         _check_image(image_bgr)
-        rgb = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2RGB)
         timings: dict = {}
         use_roi = (self.config.mode == "video") if use_roi is None else use_roi
         hand = None
         if use_roi and self._roi is not None:
             t0 = time.perf_counter()
-            hand = self.model.landmarks(rgb, self._roi)
+            hand = self.model.landmarks(image_bgr, self._roi, bgr=True)
             timings["landmarks_ms"] = 1e3 * (time.perf_counter() - t0)
             if hand.presence < self.config.min_presence:
                 hand = None
         if hand is None:
-            hand = self._find_hand(rgb, timings)
+            hand = self._find_hand(image_bgr, timings)
         self._roi = roi_from_landmarks(hand.uv) if hand is not None else None
         self.last_hand = hand
         return hand, timings
 
-    def _find_hand(self, rgb: np.ndarray, timings: dict) -> HandLandmarks | None:
+    def _find_hand(self, image_bgr: np.ndarray, timings: dict) -> HandLandmarks | None:
         """Palm candidates over the whole frame at each zoom, best palm score first, each verified by
-        the landmark model's presence score (see :class:`LearnedConfig`)."""
+        the landmark model's presence score (see :class:`LearnedConfig`). With ``palm_sure_score``
+        the best box so far, when it scores that much, is verified after each zoom and a confirmed
+        one ends the search."""
         c = self.config
-        t0 = time.perf_counter()
-        palms = [(score, k, rect) for k, z in enumerate(c.palm_zooms)
-                 for rect, score in self.model.detect_palms(rgb, max_palms=c.palm_candidates,
-                                                            min_score=c.min_palm_score, zoom=z)]
-        palms.sort(key=lambda p: (-p[0], p[1]))  # ties: the smaller zoom first
-        timings["palm_ms"] = timings.get("palm_ms", 0.0) + 1e3 * (time.perf_counter() - t0)
-        for k, (score, _, rect) in enumerate(palms[:c.palm_candidates]):
+        palms: list = []
+        checked: dict = {}   # (zoom index, box index) → landmarks: each box goes through the network once
+
+        def verify(score, k, i, rect):
+            if (k, i) not in checked:
+                t0 = time.perf_counter()
+                checked[k, i] = self.model.landmarks(image_bgr, rect, bgr=True)
+                timings["landmarks_ms"] = timings.get("landmarks_ms", 0.0) + 1e3 * (time.perf_counter() - t0)
+            hand = checked[k, i]
+            return hand if hand.presence >= c.min_presence else None
+
+        for k, z in enumerate(c.palm_zooms):
             t0 = time.perf_counter()
-            hand = self.model.landmarks(rgb, rect)
-            timings["landmarks_ms"] = timings.get("landmarks_ms", 0.0) + 1e3 * (time.perf_counter() - t0)
-            if hand.presence >= c.min_presence:
-                hand.palm_score = score
-                hand.candidate = k
+            palms += [(score, k, i, rect) for i, (rect, score) in enumerate(
+                self.model.detect_palms(image_bgr, max_palms=c.palm_candidates, min_score=c.min_palm_score,
+                                        zoom=z, bgr=True))]
+            palms.sort(key=lambda p: (-p[0], p[1]))  # ties: the smaller zoom first
+            timings["palm_ms"] = timings.get("palm_ms", 0.0) + 1e3 * (time.perf_counter() - t0)
+            last = k == len(c.palm_zooms) - 1
+            if not last and c.palm_sure_score is not None and palms and palms[0][0] >= c.palm_sure_score:
+                hand = verify(*palms[0])
+                if hand is not None:
+                    hand.palm_score, hand.candidate = palms[0][0], 0
+                    return hand
+        for j, p in enumerate(palms[:c.palm_candidates]):
+            hand = verify(*p)
+            if hand is not None:
+                hand.palm_score, hand.candidate = p[0], j
                 return hand
         return None
 
