@@ -23,11 +23,11 @@ the cap for most of a radius.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from vishap.vision.fingertip import _edge_points
 from vishap.vision.rig import StereoRig
 
 __all__ = ["AxisLine", "axis_line", "axis_disparity"]
@@ -43,6 +43,7 @@ class AxisLine:
     points: tuple[int, int]   # edge crossings used on the left and on the right side of the axis
     rms_px: float             # residual of the crossings about the two fitted edge lines
     v_mean: float             # mean row of the crossings used (where the line's column is best known)
+    cap: np.ndarray           # (2,) the detector's cap centre in the rectified view
 
     def u_at(self, v: float) -> float:
         return float(self.centre[0] + self.slope * (v - self.centre[1]))
@@ -66,61 +67,86 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
     reach 0.7 ``to_radii`` behind the centre (the outline of a cap with no finger behind it stops
     within a radius)."""
     r = float(tip.cap_radius_px if tip.cap_radius_px > 0 else tip.radius_px)
-    uv = np.asarray(tip.uv, dtype=np.float64)
-    d0 = np.asarray(tip.direction, dtype=np.float64)
+    u, v = float(tip.uv[0]), float(tip.uv[1])
+    d0x, d0y = float(tip.direction[0]), float(tip.direction[1])
     # the crossings of the mask around the finger's first to_radii + 1 radii behind the centre
-    cx, cy = uv[0] - origin[0], uv[1] - origin[1]
-    ex, ey = cx + (to_radii + 1.0) * r * d0[0], cy + (to_radii + 1.0) * r * d0[1]
+    cx, cy = u - origin[0], v - origin[1]
+    ex, ey = cx + (to_radii + 1.0) * r * d0x, cy + (to_radii + 1.0) * r * d0y
     m = r * (1.0 + width_tol) + 2.0
     h, w = mask.shape
     x0, y0 = max(int(min(cx, ex) - m), 0), max(int(min(cy, ey) - m), 0)
     x1, y1 = min(int(max(cx, ex) + m) + 2, w), min(int(max(cy, ey) + m) + 2, h)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return f"the finger behind the cap is outside the {side} view's mask"
-    e = _edge_points(mask[y0:y1, x0:x1])
-    # crossings at the crop's border are the crop's, not the finger's; then a first, loose selection
-    # about the detector's axis (its direction is coarse)
-    rel = e - (cx - x0, cy - y0)
-    along = rel @ d0
-    off = np.abs(rel[:, 0] * d0[1] - rel[:, 1] * d0[0])
-    sel = (e[:, 0] > 0) & (e[:, 0] < x1 - x0 - 1) & (e[:, 1] > 0) & (e[:, 1] < y1 - y0 - 1) \
-        & (along >= -0.5 * r) & (along <= (to_radii + 0.5) * r) & (off >= 0.4 * r) & (off <= 1.6 * r)
-    if np.count_nonzero(sel) < 2 * min_points:
-        return f"{np.count_nonzero(sel)} edge points behind the cap in the {side} view"
-    e = e[sel] + (x0 + origin[0], y0 + origin[1])
-    pts = rig.rectify_points(np.vstack([uv, uv + 2.0 * r * d0, e]), side)
-    c, p = pts[0], pts[2:]
-    d = pts[1] - c
-    d /= np.hypot(d[0], d[1]) + 1e-12
-    keep = True
+    x, y = _inner_crossings(mask[y0:y1, x0:x1])
+    # a first, loose selection about the detector's axis (its direction is coarse)
+    rx, ry = x - (cx - x0), y - (cy - y0)
+    along = rx * d0x + ry * d0y
+    off = np.abs(rx * d0y - ry * d0x)
+    sel = (along >= -0.5 * r) & (along <= (to_radii + 0.5) * r) & (off >= 0.4 * r) & (off <= 1.6 * r)
+    n = int(np.count_nonzero(sel))
+    if n < 2 * min_points:
+        return f"{n} edge points behind the cap in the {side} view"
+    # the cap centre, a point on the detector's axis and the crossings, rectified in one call
+    raw = np.empty((n + 2, 2))
+    raw[0] = u, v
+    raw[1] = u + 2.0 * r * d0x, v + 2.0 * r * d0y
+    raw[2:, 0] = x[sel] + (x0 + origin[0])
+    raw[2:, 1] = y[sel] + (y0 + origin[1])
+    rect = rig.rectify_points(raw, side)
+    cap = rect[0].copy()
+    (c0, c1), (a0, a1) = cap.tolist(), rect[1].tolist()
+    dx, dy = a0 - c0, a1 - c1
+    nd = math.hypot(dx, dy) + 1e-12
+    dx, dy = dx / nd, dy / nd
+    px, py = rect[2:].T.copy()
+    keep = None
     lo, hi, tol = from_radii * r, to_radii * r, width_tol * r
-    for _ in range(2):
-        rel = p - c
-        along = rel @ d
-        off = rel[:, 0] * d[1] - rel[:, 1] * d[0]            # signed distance from the axis
+    for it in range(2):
+        rx, ry = px - c0, py - c1
+        along = rx * dx + ry * dy
+        off = rx * dy - ry * dx                              # signed distance from the axis
         right = off > 0
-        use = keep & (along >= lo) & (along <= hi) & (np.abs(np.abs(off) - r) <= tol)
-        ul, ur = use & ~right, use & right
+        use = (along >= lo) & (along <= hi) & (np.abs(np.abs(off) - r) <= tol)
+        if keep is not None:
+            use &= keep
+        ur = use & right
+        ul = use ^ ur
         nl, nr = int(np.count_nonzero(ul)), int(np.count_nonzero(ur))
         if min(nl, nr) < min_points:
             return f"{nl} and {nr} edge points on the finger's two sides in the {side} view (need {min_points} each)"
-        reach = min(along[ul].max(), along[ur].max())
+        reach = min(float(along[ul].max()), float(along[ur].max()))
         if reach < 0.7 * hi:  # a cap's own outline stays within a radius of its centre
             return f"the finger's sides end {reach / r:.2f} radii behind the cap in the {side} view"
-        ml, mr = p[ul].sum(axis=0) / nl, p[ur].sum(axis=0) / nr
-        q = p - np.where(right[:, None], mr, ml)              # each side about its own mean
-        S = q[use].T @ q[use]
-        ang = 0.5 * np.arctan2(2.0 * S[0, 1], S[0, 0] - S[1, 1])  # the lines' common direction (total least squares)
-        dn = np.array([np.cos(ang), np.sin(ang)])
-        d = dn if dn @ d > 0 else -dn
-        mid = 0.5 * (ml + mr)
-        c = mid - ((mid - c) @ d) * d                         # the mid-line's point beside the cap centre
-        res = q[:, 0] * d[1] - q[:, 1] * d[0]                 # distance from the own side's line
-        keep = np.abs(res) <= max_residual_px
-    if abs(d[1]) < np.cos(np.deg2rad(max_tilt_deg)):
+        mlx, mly = float(px[ul].sum()) / nl, float(py[ul].sum()) / nl
+        mrx, mry = float(px[ur].sum()) / nr, float(py[ur].sum()) / nr
+        qx = px - np.where(right, mrx, mlx)                  # each side about its own mean
+        qy = py - np.where(right, mry, mly)
+        qxu, qyu = qx[use], qy[use]
+        sxx, sxy, syy = float(qxu @ qxu), float(qxu @ qyu), float(qyu @ qyu)
+        ang = 0.5 * math.atan2(2.0 * sxy, sxx - syy)        # the lines' common direction (total least squares)
+        nx, ny = math.cos(ang), math.sin(ang)
+        dx, dy = (nx, ny) if nx * dx + ny * dy > 0 else (-nx, -ny)
+        midx, midy = 0.5 * (mlx + mrx), 0.5 * (mly + mry)
+        t = (midx - c0) * dx + (midy - c1) * dy
+        c0, c1 = midx - t * dx, midy - t * dy                # the mid-line's point beside the cap centre
+        if it == 0:
+            keep = np.abs(qx * dy - qy * dx) <= max_residual_px  # distance from the own side's line
+    if abs(dy) < math.cos(math.radians(max_tilt_deg)):
         return f"the finger lies within {90 - max_tilt_deg:.0f}° of the rows in the {side} view"
-    rms = float(np.sqrt(np.mean(np.square(res[use]))))
-    return AxisLine(c, float(d[0] / d[1]), (nl, nr), rms, float(p[use, 1].mean()))
+    res = qxu * dy - qyu * dx
+    rms = math.sqrt(float(res @ res) / (nl + nr))
+    return AxisLine(np.array([c0, c1]), dx / dy, (nl, nr), rms, float(py[use].mean()), cap)
+
+
+def _inner_crossings(crop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Columns and rows of the midpoints between horizontally/vertically adjacent pixels of ``crop``
+    of which one is skin and one not, leaving out those on the crop's border rows and columns (the
+    crop's, not the finger's): the crossings of ``fingertip._edge_points`` inside the crop, as two arrays."""
+    b = crop > 0
+    hy, hx = np.nonzero(b[1:-1, 1:] != b[1:-1, :-1])
+    vy, vx = np.nonzero(b[1:, 1:-1] != b[:-1, 1:-1])
+    return np.concatenate([hx + 0.5, vx + 1.0]), np.concatenate([hy + 1.0, vy + 0.5])
 
 
 def axis_disparity(line_l: AxisLine, line_r: AxisLine, v_ref: float) -> float:

@@ -360,8 +360,7 @@ def _refine_by_axis(rig: StereoRig, masks: dict | None, tip_left, tip_right, con
                                 min_points=config.axis_min_points)
         if isinstance(lines[side], str):
             return RefinedPair(False, reason=lines[side])
-    cl = rig.rectify_points(np.asarray(tip_left.uv, dtype=np.float64).reshape(1, 2), "left")[0]
-    cr = rig.rectify_points(np.asarray(tip_right.uv, dtype=np.float64).reshape(1, 2), "right")[0]
+    cl, cr = lines["left"].cap, lines["right"].cap
     v = 0.5 * (cl[1] + cr[1])
     cap = cl[0] - cr[0]
     axis = axis_disparity(lines["left"], lines["right"], v if config.axis_at_cap else
