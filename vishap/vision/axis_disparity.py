@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from vishap.vision.rig import StereoRig
@@ -78,34 +79,31 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
     x1, y1 = min(int(max(cx, ex) + m) + 2, w), min(int(max(cy, ey) + m) + 2, h)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return f"the finger behind the cap is outside the {side} view's mask"
-    x, y = _inner_crossings(mask[y0:y1, x0:x1])
+    # points as complex numbers u + iv: (z − c)·conj(d) is (along the axis) − i(signed distance from it)
+    z = _inner_crossings(mask[y0:y1, x0:x1])
     # a first, loose selection about the detector's axis (its direction is coarse)
-    rx, ry = x - (cx - x0), y - (cy - y0)
-    along = rx * d0x + ry * d0y
-    off = np.abs(rx * d0y - ry * d0x)
-    sel = (along >= -0.5 * r) & (along <= (to_radii + 0.5) * r) & (off >= 0.4 * r) & (off <= 1.6 * r)
+    w = (z - complex(cx - x0, cy - y0)) * complex(d0x, -d0y)
+    off = np.abs(w.imag)
+    sel = (w.real >= -0.5 * r) & (w.real <= (to_radii + 0.5) * r) & (off >= 0.4 * r) & (off <= 1.6 * r)
     n = int(np.count_nonzero(sel))
     if n < 2 * min_points:
         return f"{n} edge points behind the cap in the {side} view"
     # the cap centre, a point on the detector's axis and the crossings, rectified in one call
-    raw = np.empty((n + 2, 2))
-    raw[0] = u, v
-    raw[1] = u + 2.0 * r * d0x, v + 2.0 * r * d0y
-    raw[2:, 0] = x[sel] + (x0 + origin[0])
-    raw[2:, 1] = y[sel] + (y0 + origin[1])
-    rect = rig.rectify_points(raw, side)
+    raw = np.empty(n + 2, complex)
+    raw[0] = complex(u, v)
+    raw[1] = complex(u + 2.0 * r * d0x, v + 2.0 * r * d0y)
+    raw[2:] = z[sel] + complex(x0 + origin[0], y0 + origin[1])
+    rect = _rectify_points(rig, raw.view(np.float64).reshape(-1, 2), side)
     cap = rect[0].copy()
-    (c0, c1), (a0, a1) = cap.tolist(), rect[1].tolist()
-    dx, dy = a0 - c0, a1 - c1
-    nd = math.hypot(dx, dy) + 1e-12
-    dx, dy = dx / nd, dy / nd
-    px, py = rect[2:].T.copy()
+    p = rect[2:].copy().view(complex).ravel()
+    c = complex(*rect[0])
+    d = complex(*rect[1]) - c
+    d /= abs(d) + 1e-12
     keep = None
     lo, hi, tol = from_radii * r, to_radii * r, width_tol * r
     for it in range(2):
-        rx, ry = px - c0, py - c1
-        along = rx * dx + ry * dy
-        off = rx * dy - ry * dx                              # signed distance from the axis
+        w = (p - c) * d.conjugate()
+        along, off = w.real, -w.imag                          # off: signed distance from the axis
         right = off > 0
         use = (along >= lo) & (along <= hi) & (np.abs(np.abs(off) - r) <= tol)
         if keep is not None:
@@ -118,35 +116,46 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
         reach = min(float(along[ul].max()), float(along[ur].max()))
         if reach < 0.7 * hi:  # a cap's own outline stays within a radius of its centre
             return f"the finger's sides end {reach / r:.2f} radii behind the cap in the {side} view"
-        mlx, mly = float(px[ul].sum()) / nl, float(py[ul].sum()) / nl
-        mrx, mry = float(px[ur].sum()) / nr, float(py[ur].sum()) / nr
-        qx = px - np.where(right, mrx, mlx)                  # each side about its own mean
-        qy = py - np.where(right, mry, mly)
-        qxu, qyu = qx[use], qy[use]
-        sxx, sxy, syy = float(qxu @ qxu), float(qxu @ qyu), float(qyu @ qyu)
-        ang = 0.5 * math.atan2(2.0 * sxy, sxx - syy)        # the lines' common direction (total least squares)
-        nx, ny = math.cos(ang), math.sin(ang)
-        dx, dy = (nx, ny) if nx * dx + ny * dy > 0 else (-nx, -ny)
-        midx, midy = 0.5 * (mlx + mrx), 0.5 * (mly + mry)
-        t = (midx - c0) * dx + (midy - c1) * dy
-        c0, c1 = midx - t * dx, midy - t * dy                # the mid-line's point beside the cap centre
+        ml, mr = complex(p[ul].sum()) / nl, complex(p[ur].sum()) / nr
+        q = p - np.where(right, mr, ml)                       # each side about its own mean
+        qu = q[use]
+        s2 = complex((qu * qu).sum())                         # Σ(qx² − qy²) + 2iΣqx·qy
+        ang = 0.5 * math.atan2(s2.imag, s2.real)              # the lines' common direction (total least squares)
+        dn = complex(math.cos(ang), math.sin(ang))
+        d = dn if (dn * d.conjugate()).real > 0 else -dn
+        mid = 0.5 * (ml + mr)
+        c = mid - ((mid - c) * d.conjugate()).real * d        # the mid-line's point beside the cap centre
         if it == 0:
-            keep = np.abs(qx * dy - qy * dx) <= max_residual_px  # distance from the own side's line
-    if abs(dy) < math.cos(math.radians(max_tilt_deg)):
+            keep = np.abs((q * d.conjugate()).imag) <= max_residual_px  # distance from the own side's line
+    if abs(d.imag) < math.cos(math.radians(max_tilt_deg)):
         return f"the finger lies within {90 - max_tilt_deg:.0f}° of the rows in the {side} view"
-    res = qxu * dy - qyu * dx
+    res = (qu * d.conjugate()).imag
     rms = math.sqrt(float(res @ res) / (nl + nr))
-    return AxisLine(np.array([c0, c1]), dx / dy, (nl, nr), rms, float(py[use].mean()), cap)
+    return AxisLine(np.array([c.real, c.imag]), d.real / d.imag, (nl, nr), rms, float(p[use].imag.mean()), cap)
 
 
-def _inner_crossings(crop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Columns and rows of the midpoints between horizontally/vertically adjacent pixels of ``crop``
+def _rectify_points(rig: StereoRig, uv: np.ndarray, side: str) -> np.ndarray:
+    """``rig.rectify_points`` of finite raw pixels (N, 2); for a view without lens distortion the same
+    floats without the undistortion's iterations (each an identity there, 50 of them per point, some
+    nine tenths of the rectification's time)."""
+    K, dist, Rr, P = ((rig.K_left, rig.dist_left, rig.R1, rig.P1) if side == "left"
+                      else (rig.K_right, rig.dist_right, rig.R2, rig.P2))
+    if np.any(dist):
+        return rig.rectify_points(uv, side)
+    return cv2.undistortPoints(uv.reshape(-1, 1, 2), K, None, None, Rr, P).reshape(-1, 2)
+
+
+def _inner_crossings(crop: np.ndarray) -> np.ndarray:
+    """The midpoints (complex, column + i·row) between horizontally/vertically adjacent pixels of ``crop``
     of which one is skin and one not, leaving out those on the crop's border rows and columns (the
-    crop's, not the finger's): the crossings of ``fingertip._edge_points`` inside the crop, as two arrays."""
+    crop's, not the finger's): the crossings of ``fingertip._edge_points`` inside the crop."""
     b = crop > 0
     hy, hx = np.nonzero(b[1:-1, 1:] != b[1:-1, :-1])
     vy, vx = np.nonzero(b[1:, 1:-1] != b[:-1, 1:-1])
-    return np.concatenate([hx + 0.5, vx + 1.0]), np.concatenate([hy + 1.0, vy + 0.5])
+    z = np.empty(len(hx) + len(vx), complex)
+    z.real[:len(hx)], z.imag[:len(hx)] = hx + 0.5, hy + 1.0
+    z.real[len(hx):], z.imag[len(hx):] = vx + 1.0, vy + 0.5
+    return z
 
 
 def axis_disparity(line_l: AxisLine, line_r: AxisLine, v_ref: float) -> float:
