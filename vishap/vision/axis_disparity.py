@@ -74,9 +74,9 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
     cx, cy = u - origin[0], v - origin[1]
     ex, ey = cx + (to_radii + 1.0) * r * d0x, cy + (to_radii + 1.0) * r * d0y
     m = r * (1.0 + width_tol) + 2.0
-    h, w = mask.shape
+    mh, mw = mask.shape
     x0, y0 = max(int(min(cx, ex) - m), 0), max(int(min(cy, ey) - m), 0)
-    x1, y1 = min(int(max(cx, ex) + m) + 2, w), min(int(max(cy, ey) + m) + 2, h)
+    x1, y1 = min(int(max(cx, ex) + m) + 2, mw), min(int(max(cy, ey) + m) + 2, mh)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return f"the finger behind the cap is outside the {side} view's mask"
     # points as complex numbers u + iv: (z − c)·conj(d) is (along the axis) − i(signed distance from it)
@@ -94,8 +94,8 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
     raw[1] = complex(u + 2.0 * r * d0x, v + 2.0 * r * d0y)
     raw[2:] = z[sel] + complex(x0 + origin[0], y0 + origin[1])
     rect = _rectify_points(rig, raw.view(np.float64).reshape(-1, 2), side)
-    cap = rect[0].copy()
-    p = rect[2:].copy().view(complex).ravel()
+    cap = rect[0]
+    p = rect[2:].view(complex).ravel()
     c = complex(*rect[0])
     d = complex(*rect[1]) - c
     d /= abs(d) + 1e-12
@@ -103,9 +103,9 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
     lo, hi, tol = from_radii * r, to_radii * r, width_tol * r
     for it in range(2):
         w = (p - c) * d.conjugate()
-        along, off = w.real, -w.imag                          # off: signed distance from the axis
-        right = off > 0
-        use = (along >= lo) & (along <= hi) & (np.abs(np.abs(off) - r) <= tol)
+        along, across = w.real, w.imag                        # across: minus the signed distance from the axis
+        right = across < 0
+        use = (along >= lo) & (along <= hi) & (np.abs(np.abs(across) - r) <= tol)
         if keep is not None:
             use &= keep
         ur = use & right
