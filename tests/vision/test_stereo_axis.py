@@ -190,3 +190,21 @@ def test_axis_line_equals_the_plain_two_line_fit(rig_name, request, rng):
         assert line.points == ref[2]
         assert line.rms_px == pytest.approx(ref[3], abs=1e-9) and line.v_mean == pytest.approx(ref[4], abs=1e-9)
         np.testing.assert_allclose(line.cap, rig.rectify_points(tip.uv, "right" if k % 3 else "left")[0], atol=1e-9)
+
+
+def test_unrectified_points_of_an_undistorted_view_are_cv2s(ideal_rig, distorted_rig, rng):
+    """The rectified pixels taken back to raw pixels: cv2.projectPoints' floats for a view without
+    distortion (computed without the call), and back onto the raw pixels they came from."""
+    from vishap.vision.stereo import _unrectify_points
+
+    raw = rng.uniform((0, 0), (640, 480), (200, 2))
+    for rig in (ideal_rig, distorted_rig):
+        for side, K, d, R, P in (("left", rig.K_left, rig.dist_left, rig.R1, rig.P1),
+                                 ("right", rig.K_right, rig.dist_right, rig.R2, rig.P2)):
+            rect = rig.rectify_points(raw, side)
+            rays = np.column_stack([(rect[:, 0] - P[0, 2]) / P[0, 0], (rect[:, 1] - P[1, 2]) / P[1, 1],
+                                    np.ones(len(rect))]) @ R
+            ref = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), K, d)[0].reshape(-1, 2)
+            got = _unrectify_points(rig, rect, side)
+            np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(got, raw, rtol=0, atol=1e-6)

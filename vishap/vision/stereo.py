@@ -207,7 +207,9 @@ def _unrectify_points(rig: StereoRig, pts: np.ndarray, side: str) -> np.ndarray:
     x = (pts[:, 0] - P[0, 2]) / P[0, 0]
     y = (pts[:, 1] - P[1, 2]) / P[1, 1]
     rays = np.column_stack([x, y, np.ones(len(pts))]) @ Rr  # Rr^T applied to row vectors
-    if not np.any(d) and K[0, 1] == 0.0:  # cv2.projectPoints' arithmetic there, without its overhead
+    if not np.any(d) and K[0, 1] == 0.0:
+        # no distortion: cv2.projectPoints' own arithmetic (times the reciprocal depth, then f·x + c; it
+        # has no skew), the same floats without its call's overhead
         iz = 1.0 / rays[:, 2]
         return np.column_stack([rays[:, 0] * iz * K[0, 0] + K[0, 2], rays[:, 1] * iz * K[1, 1] + K[1, 2]])
     out, _ = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), K, d)
