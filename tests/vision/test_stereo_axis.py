@@ -131,3 +131,80 @@ def test_the_pipeline_takes_the_disparity_from_the_side_edges_by_default(ideal_r
     failed, ok = pipe.refine_stats
     assert ok >= 0.8 * (ok + failed) and ok >= 20, pipe.refine_stats
     assert np.sqrt(np.mean(np.square(err))) < 0.003
+
+
+def _reference_axis_line(rig, side, mask, tip, from_radii, to_radii, width_tol, max_residual_px, min_points, **_):
+    """The side-edge axis written plainly (pixel-pair crossings of the whole crop, the crop's border
+    dropped, rectified with the rig's own call, the two-line fit with 2×2 matrices): (centre, slope,
+    points, rms, v_mean), or None where it refuses."""
+    from vishap.vision.fingertip import _edge_points
+
+    r, uv, d0 = tip.cap_radius_px, np.asarray(tip.uv, float), np.asarray(tip.direction, float)
+    end = uv + (to_radii + 1.0) * r * d0
+    m = r * (1.0 + width_tol) + 2.0
+    x0, y0 = (max(int(v), 0) for v in np.minimum(uv, end) - m)
+    x1, y1 = (min(int(v) + 2, s) for v, s in zip(np.maximum(uv, end) + m, mask.shape[::-1]))
+    e = _edge_points(mask[y0:y1, x0:x1])
+    e = e[(e[:, 0] > 0) & (e[:, 0] < x1 - x0 - 1) & (e[:, 1] > 0) & (e[:, 1] < y1 - y0 - 1)] + (x0, y0)
+    rel = e - uv
+    along, off = rel @ d0, np.abs(rel[:, 0] * d0[1] - rel[:, 1] * d0[0])
+    e = e[(along >= -0.5 * r) & (along <= (to_radii + 0.5) * r) & (off >= 0.4 * r) & (off <= 1.6 * r)]
+    c, a = rig.rectify_points(np.array([uv, uv + 2.0 * r * d0]), side)
+    p = rig.rectify_points(e, side)
+    d = (a - c) / np.linalg.norm(a - c)
+    keep = np.ones(len(p), bool)
+    for _ in range(2):
+        rel = p - c
+        along, off = rel @ d, rel[:, 0] * d[1] - rel[:, 1] * d[0]
+        use = keep & (along >= from_radii * r) & (along <= to_radii * r) & (np.abs(np.abs(off) - r) <= width_tol * r)
+        sides = [use & (off <= 0), use & (off > 0)]
+        if min(s.sum() for s in sides) < min_points:
+            return None
+        means = [p[s].mean(axis=0) for s in sides]
+        q = p - np.where((off > 0)[:, None], means[1], means[0])
+        evals, evecs = np.linalg.eigh(q[use].T @ q[use])
+        d = evecs[:, 1] * np.sign(evecs[:, 1] @ d)
+        mid = 0.5 * (means[0] + means[1])
+        c = mid - ((mid - c) @ d) * d
+        res = q @ np.array([d[1], -d[0]])
+        keep = np.abs(res) <= max_residual_px
+    return c, d[0] / d[1], tuple(int(s.sum()) for s in sides), np.sqrt(np.mean(res[use] ** 2)), p[use, 1].mean()
+
+
+@pytest.mark.parametrize("rig_name", ["ideal_rig", "distorted_rig"])
+def test_axis_line_equals_the_plain_two_line_fit(rig_name, request, rng):
+    """The axis line's arithmetic (complex points, crossings inside the crop only, one rectification
+    call per view) gives the plain fit's numbers to rounding on toy fingers, with and without lens
+    distortion."""
+    rig = request.getfixturevalue(rig_name)
+    for k in range(10):
+        c = np.array([300.0, 220.0]) + rng.uniform(0, 1, 2)
+        r = rng.uniform(6.0, 9.0)
+        mask, _ = _finger_mask(c, rng.uniform(10, 45) * (1 if k % 2 else -1), r)
+        tip = _tip(mask, r, c)
+        line = axis_line(rig, "right" if k % 3 else "left", mask, (0, 0), tip, **KW)
+        ref = _reference_axis_line(rig, "right" if k % 3 else "left", mask, tip, **KW)
+        assert not isinstance(line, str) and ref is not None, line
+        np.testing.assert_allclose(line.centre, ref[0], rtol=0, atol=1e-9)
+        assert line.slope == pytest.approx(ref[1], abs=1e-9)
+        assert line.points == ref[2]
+        assert line.rms_px == pytest.approx(ref[3], abs=1e-9) and line.v_mean == pytest.approx(ref[4], abs=1e-9)
+        np.testing.assert_allclose(line.cap, rig.rectify_points(tip.uv, "right" if k % 3 else "left")[0], atol=1e-9)
+
+
+def test_unrectified_points_of_an_undistorted_view_are_cv2s(ideal_rig, distorted_rig, rng):
+    """The rectified pixels taken back to raw pixels: cv2.projectPoints' floats for a view without
+    distortion (computed without the call), and back onto the raw pixels they came from."""
+    from vishap.vision.stereo import _unrectify_points
+
+    raw = rng.uniform((0, 0), (640, 480), (200, 2))
+    for rig in (ideal_rig, distorted_rig):
+        for side, K, d, R, P in (("left", rig.K_left, rig.dist_left, rig.R1, rig.P1),
+                                 ("right", rig.K_right, rig.dist_right, rig.R2, rig.P2)):
+            rect = rig.rectify_points(raw, side)
+            rays = np.column_stack([(rect[:, 0] - P[0, 2]) / P[0, 0], (rect[:, 1] - P[1, 2]) / P[1, 1],
+                                    np.ones(len(rect))]) @ R
+            ref = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), K, d)[0].reshape(-1, 2)
+            got = _unrectify_points(rig, rect, side)
+            np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(got, raw, rtol=0, atol=1e-6)

@@ -23,11 +23,12 @@ the cap for most of a radius.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
-from vishap.vision.fingertip import _edge_points
 from vishap.vision.rig import StereoRig
 
 __all__ = ["AxisLine", "axis_line", "axis_disparity"]
@@ -43,6 +44,7 @@ class AxisLine:
     points: tuple[int, int]   # edge crossings used on the left and on the right side of the axis
     rms_px: float             # residual of the crossings about the two fitted edge lines
     v_mean: float             # mean row of the crossings used (where the line's column is best known)
+    cap: np.ndarray           # (2,) the detector's cap centre in the rectified view
 
     def u_at(self, v: float) -> float:
         return float(self.centre[0] + self.slope * (v - self.centre[1]))
@@ -66,61 +68,94 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
     reach 0.7 ``to_radii`` behind the centre (the outline of a cap with no finger behind it stops
     within a radius)."""
     r = float(tip.cap_radius_px if tip.cap_radius_px > 0 else tip.radius_px)
-    uv = np.asarray(tip.uv, dtype=np.float64)
-    d0 = np.asarray(tip.direction, dtype=np.float64)
+    u, v = float(tip.uv[0]), float(tip.uv[1])
+    d0x, d0y = float(tip.direction[0]), float(tip.direction[1])
     # the crossings of the mask around the finger's first to_radii + 1 radii behind the centre
-    cx, cy = uv[0] - origin[0], uv[1] - origin[1]
-    ex, ey = cx + (to_radii + 1.0) * r * d0[0], cy + (to_radii + 1.0) * r * d0[1]
+    cx, cy = u - origin[0], v - origin[1]
+    ex, ey = cx + (to_radii + 1.0) * r * d0x, cy + (to_radii + 1.0) * r * d0y
     m = r * (1.0 + width_tol) + 2.0
-    h, w = mask.shape
+    mh, mw = mask.shape
     x0, y0 = max(int(min(cx, ex) - m), 0), max(int(min(cy, ey) - m), 0)
-    x1, y1 = min(int(max(cx, ex) + m) + 2, w), min(int(max(cy, ey) + m) + 2, h)
+    x1, y1 = min(int(max(cx, ex) + m) + 2, mw), min(int(max(cy, ey) + m) + 2, mh)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return f"the finger behind the cap is outside the {side} view's mask"
-    e = _edge_points(mask[y0:y1, x0:x1])
-    # crossings at the crop's border are the crop's, not the finger's; then a first, loose selection
-    # about the detector's axis (its direction is coarse)
-    rel = e - (cx - x0, cy - y0)
-    along = rel @ d0
-    off = np.abs(rel[:, 0] * d0[1] - rel[:, 1] * d0[0])
-    sel = (e[:, 0] > 0) & (e[:, 0] < x1 - x0 - 1) & (e[:, 1] > 0) & (e[:, 1] < y1 - y0 - 1) \
-        & (along >= -0.5 * r) & (along <= (to_radii + 0.5) * r) & (off >= 0.4 * r) & (off <= 1.6 * r)
-    if np.count_nonzero(sel) < 2 * min_points:
-        return f"{np.count_nonzero(sel)} edge points behind the cap in the {side} view"
-    e = e[sel] + (x0 + origin[0], y0 + origin[1])
-    pts = rig.rectify_points(np.vstack([uv, uv + 2.0 * r * d0, e]), side)
-    c, p = pts[0], pts[2:]
-    d = pts[1] - c
-    d /= np.hypot(d[0], d[1]) + 1e-12
-    keep = True
+    # points as complex numbers u + iv: (z − c)·conj(d) is (along the axis) − i(signed distance from it)
+    z = _inner_crossings(mask[y0:y1, x0:x1])
+    # a first, loose selection about the detector's axis (its direction is coarse)
+    w = (z - complex(cx - x0, cy - y0)) * complex(d0x, -d0y)
+    off = np.abs(w.imag)
+    sel = (w.real >= -0.5 * r) & (w.real <= (to_radii + 0.5) * r) & (off >= 0.4 * r) & (off <= 1.6 * r)
+    n = int(np.count_nonzero(sel))
+    if n < 2 * min_points:
+        return f"{n} edge points behind the cap in the {side} view"
+    # the cap centre, a point on the detector's axis and the crossings, rectified in one call
+    raw = np.empty(n + 2, complex)
+    raw[0] = complex(u, v)
+    raw[1] = complex(u + 2.0 * r * d0x, v + 2.0 * r * d0y)
+    raw[2:] = z[sel] + complex(x0 + origin[0], y0 + origin[1])
+    rect = _rectify_points(rig, raw.view(np.float64).reshape(-1, 2), side)
+    cap = rect[0]
+    p = rect[2:].view(complex).ravel()
+    c = complex(*rect[0])
+    d = complex(*rect[1]) - c
+    d /= abs(d) + 1e-12
+    keep = None
     lo, hi, tol = from_radii * r, to_radii * r, width_tol * r
-    for _ in range(2):
-        rel = p - c
-        along = rel @ d
-        off = rel[:, 0] * d[1] - rel[:, 1] * d[0]            # signed distance from the axis
-        right = off > 0
-        use = keep & (along >= lo) & (along <= hi) & (np.abs(np.abs(off) - r) <= tol)
-        ul, ur = use & ~right, use & right
+    for it in range(2):
+        w = (p - c) * d.conjugate()
+        along, across = w.real, w.imag                        # across: minus the signed distance from the axis
+        right = across < 0
+        use = (along >= lo) & (along <= hi) & (np.abs(np.abs(across) - r) <= tol)
+        if keep is not None:
+            use &= keep
+        ur = use & right
+        ul = use ^ ur
         nl, nr = int(np.count_nonzero(ul)), int(np.count_nonzero(ur))
         if min(nl, nr) < min_points:
             return f"{nl} and {nr} edge points on the finger's two sides in the {side} view (need {min_points} each)"
-        reach = min(along[ul].max(), along[ur].max())
+        reach = min(float(along[ul].max()), float(along[ur].max()))
         if reach < 0.7 * hi:  # a cap's own outline stays within a radius of its centre
             return f"the finger's sides end {reach / r:.2f} radii behind the cap in the {side} view"
-        ml, mr = p[ul].sum(axis=0) / nl, p[ur].sum(axis=0) / nr
-        q = p - np.where(right[:, None], mr, ml)              # each side about its own mean
-        S = q[use].T @ q[use]
-        ang = 0.5 * np.arctan2(2.0 * S[0, 1], S[0, 0] - S[1, 1])  # the lines' common direction (total least squares)
-        dn = np.array([np.cos(ang), np.sin(ang)])
-        d = dn if dn @ d > 0 else -dn
+        ml, mr = complex(p[ul].sum()) / nl, complex(p[ur].sum()) / nr
+        q = p - np.where(right, mr, ml)                       # each side about its own mean
+        qu = q[use]
+        s2 = complex((qu * qu).sum())                         # Σ(qx² − qy²) + 2iΣqx·qy
+        ang = 0.5 * math.atan2(s2.imag, s2.real)              # the lines' common direction (total least squares)
+        dn = complex(math.cos(ang), math.sin(ang))
+        d = dn if (dn * d.conjugate()).real > 0 else -dn
         mid = 0.5 * (ml + mr)
-        c = mid - ((mid - c) @ d) * d                         # the mid-line's point beside the cap centre
-        res = q[:, 0] * d[1] - q[:, 1] * d[0]                 # distance from the own side's line
-        keep = np.abs(res) <= max_residual_px
-    if abs(d[1]) < np.cos(np.deg2rad(max_tilt_deg)):
+        c = mid - ((mid - c) * d.conjugate()).real * d        # the mid-line's point beside the cap centre
+        if it == 0:
+            keep = np.abs((q * d.conjugate()).imag) <= max_residual_px  # distance from the own side's line
+    if abs(d.imag) < math.cos(math.radians(max_tilt_deg)):
         return f"the finger lies within {90 - max_tilt_deg:.0f}° of the rows in the {side} view"
-    rms = float(np.sqrt(np.mean(np.square(res[use]))))
-    return AxisLine(c, float(d[0] / d[1]), (nl, nr), rms, float(p[use, 1].mean()))
+    res = (qu * d.conjugate()).imag
+    rms = math.sqrt(float(res @ res) / (nl + nr))
+    return AxisLine(np.array([c.real, c.imag]), d.real / d.imag, (nl, nr), rms, float(p[use].imag.mean()), cap)
+
+
+def _rectify_points(rig: StereoRig, uv: np.ndarray, side: str) -> np.ndarray:
+    """``rig.rectify_points`` of finite raw pixels (N, 2); for a view without lens distortion the same
+    floats without the undistortion's iterations (each an identity there, 50 of them per point, some
+    nine tenths of the rectification's time)."""
+    K, dist, Rr, P = ((rig.K_left, rig.dist_left, rig.R1, rig.P1) if side == "left"
+                      else (rig.K_right, rig.dist_right, rig.R2, rig.P2))
+    if np.any(dist):
+        return rig.rectify_points(uv, side)
+    return cv2.undistortPoints(uv.reshape(-1, 1, 2), K, None, None, Rr, P).reshape(-1, 2)
+
+
+def _inner_crossings(crop: np.ndarray) -> np.ndarray:
+    """The midpoints (complex, column + i·row) between horizontally/vertically adjacent pixels of ``crop``
+    of which one is skin and one not, leaving out those on the crop's border rows and columns (the
+    crop's, not the finger's): the crossings of ``fingertip._edge_points`` inside the crop."""
+    b = crop > 0
+    hy, hx = np.nonzero(b[1:-1, 1:] != b[1:-1, :-1])
+    vy, vx = np.nonzero(b[1:, 1:-1] != b[:-1, 1:-1])
+    z = np.empty(len(hx) + len(vx), complex)
+    z.real[:len(hx)], z.imag[:len(hx)] = hx + 0.5, hy + 1.0
+    z.real[len(hx):], z.imag[len(hx):] = vx + 1.0, vy + 0.5
+    return z
 
 
 def axis_disparity(line_l: AxisLine, line_r: AxisLine, v_ref: float) -> float:

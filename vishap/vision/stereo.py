@@ -207,6 +207,11 @@ def _unrectify_points(rig: StereoRig, pts: np.ndarray, side: str) -> np.ndarray:
     x = (pts[:, 0] - P[0, 2]) / P[0, 0]
     y = (pts[:, 1] - P[1, 2]) / P[1, 1]
     rays = np.column_stack([x, y, np.ones(len(pts))]) @ Rr  # Rr^T applied to row vectors
+    if not np.any(d) and K[0, 1] == 0.0:
+        # no distortion: cv2.projectPoints' own arithmetic (times the reciprocal depth, then f·x + c; it
+        # has no skew), the same floats without its call's overhead
+        iz = 1.0 / rays[:, 2]
+        return np.column_stack([rays[:, 0] * iz * K[0, 0] + K[0, 2], rays[:, 1] * iz * K[1, 1] + K[1, 2]])
     out, _ = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), K, d)
     return out.reshape(-1, 2)
 
@@ -360,8 +365,7 @@ def _refine_by_axis(rig: StereoRig, masks: dict | None, tip_left, tip_right, con
                                 min_points=config.axis_min_points)
         if isinstance(lines[side], str):
             return RefinedPair(False, reason=lines[side])
-    cl = rig.rectify_points(np.asarray(tip_left.uv, dtype=np.float64).reshape(1, 2), "left")[0]
-    cr = rig.rectify_points(np.asarray(tip_right.uv, dtype=np.float64).reshape(1, 2), "right")[0]
+    cl, cr = lines["left"].cap, lines["right"].cap
     v = 0.5 * (cl[1] + cr[1])
     cap = cl[0] - cr[0]
     axis = axis_disparity(lines["left"], lines["right"], v if config.axis_at_cap else
