@@ -133,12 +133,18 @@ def test_the_pipeline_takes_the_disparity_from_the_side_edges_by_default(ideal_r
     assert np.sqrt(np.mean(np.square(err))) < 0.003
 
 
+def _edge_points(win):
+    """Midpoints between horizontally/vertically adjacent pixels of different value (x, y)."""
+    b = win > 0
+    hy, hx = np.nonzero(b[:, 1:] != b[:, :-1])
+    vy, vx = np.nonzero(b[1:, :] != b[:-1, :])
+    return np.concatenate([np.column_stack([hx + 0.5, hy]), np.column_stack([vx, vy + 0.5])]).astype(np.float64)
+
+
 def _reference_axis_line(rig, side, mask, tip, from_radii, to_radii, width_tol, max_residual_px, min_points, **_):
     """The side-edge axis written plainly (pixel-pair crossings of the whole crop, the crop's border
     dropped, rectified with the rig's own call, the two-line fit with 2×2 matrices): (centre, slope,
     points, rms, v_mean), or None where it refuses."""
-    from vishap.vision.fingertip import _edge_points
-
     r, uv, d0 = tip.cap_radius_px, np.asarray(tip.uv, float), np.asarray(tip.direction, float)
     end = uv + (to_radii + 1.0) * r * d0
     m = r * (1.0 + width_tol) + 2.0

@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from vishap.vision.rig import StereoRig
@@ -93,7 +92,7 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
     raw[0] = complex(u, v)
     raw[1] = complex(u + 2.0 * r * d0x, v + 2.0 * r * d0y)
     raw[2:] = z[sel] + complex(x0 + origin[0], y0 + origin[1])
-    rect = _rectify_points(rig, raw.view(np.float64).reshape(-1, 2), side)
+    rect = rig.rectify_points(raw.view(np.float64).reshape(-1, 2), side)
     cap = rect[0]
     p = rect[2:].view(complex).ravel()
     c = complex(*rect[0])
@@ -134,21 +133,10 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
     return AxisLine(np.array([c.real, c.imag]), d.real / d.imag, (nl, nr), rms, float(p[use].imag.mean()), cap)
 
 
-def _rectify_points(rig: StereoRig, uv: np.ndarray, side: str) -> np.ndarray:
-    """``rig.rectify_points`` of finite raw pixels (N, 2); for a view without lens distortion the same
-    floats without the undistortion's iterations (each an identity there, 50 of them per point, some
-    nine tenths of the rectification's time)."""
-    K, dist, Rr, P = ((rig.K_left, rig.dist_left, rig.R1, rig.P1) if side == "left"
-                      else (rig.K_right, rig.dist_right, rig.R2, rig.P2))
-    if np.any(dist):
-        return rig.rectify_points(uv, side)
-    return cv2.undistortPoints(uv.reshape(-1, 1, 2), K, None, None, Rr, P).reshape(-1, 2)
-
-
 def _inner_crossings(crop: np.ndarray) -> np.ndarray:
     """The midpoints (complex, column + i·row) between horizontally/vertically adjacent pixels of ``crop``
     of which one is skin and one not, leaving out those on the crop's border rows and columns (the
-    crop's, not the finger's): the crossings of ``fingertip._edge_points`` inside the crop."""
+    crop's, not the finger's): the edge crossings inside the crop."""
     b = crop > 0
     hy, hx = np.nonzero(b[1:-1, 1:] != b[1:-1, :-1])
     vy, vx = np.nonzero(b[1:, 1:-1] != b[:-1, 1:-1])

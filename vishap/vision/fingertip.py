@@ -268,15 +268,6 @@ def fit_circle(pts: np.ndarray) -> tuple[np.ndarray, float] | None:
     return None if fit is None else (np.array(fit[:2]) + m, fit[2])
 
 
-def _edge_points(win: np.ndarray) -> np.ndarray:
-    """Midpoints between horizontally/vertically adjacent pixels of different value (x, y): the
-    mask's edge crossings (the side-edge axis of vision/axis_disparity.py fits lines to them)."""
-    b = win > 0
-    hy, hx = np.nonzero(b[:, 1:] != b[:, :-1])
-    vy, vx = np.nonzero(b[1:, :] != b[:-1, :])
-    return np.concatenate([np.column_stack([hx + 0.5, hy]), np.column_stack([vx, vy + 0.5])]).astype(np.float64)
-
-
 @lru_cache(maxsize=64)
 def _edge_grid(half: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where the mask's edge crossings of a (2·half+1)² window centred on a pixel can lie, relative
