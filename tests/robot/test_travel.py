@@ -290,3 +290,23 @@ def test_the_servo_gives_its_limiter_the_workspace_box_and_the_shapers_rest_poin
     ex.push(0.0, 0.1, 0.0, -0.1)
     ex.push(0.033, 0.11, 0.0, -0.1)
     assert ex.rest()[0] == pytest.approx(0.11 + 0.01 / 0.033 * ex.horizon * 0.033)
+
+
+def test_a_cap_that_falls_faster_than_the_device_brakes_does_not_turn_it_back():
+    """The approach configuration speeding towards a target 60 mm ahead when the finger's estimate
+    jumps next to it (the cap falls from 0.6 to 0.22 m/s in one tick): the output steps down to the
+    cap and goes on towards the target. The step is not kept as a 40 m/s² braking that the jerk limit
+    would take 40 ms to unwind, running the output back away from its target."""
+    lim = TravelLimiter.for_approach()
+    lim.reset(0.0, 0.0, 0.0)
+    vs = []
+    for k in range(120):
+        t = k * 1e-3
+        near = t >= 0.03
+        out = lim.step(t, 0.06, 0.0, 0.0, 0.0, 0.0, 0.0, finger_m=lim.near_m if near else None)
+        if near:
+            vs.append(out[3])
+    vs = np.array(vs)
+    assert vs[0] == pytest.approx(lim.near_speed)  # it was faster than the cap: stepped down at once
+    assert vs.max() <= lim.near_speed + 1e-9
+    assert vs[:40].min() > 0.9 * lim.near_speed  # still on its way at the cap, not braking through zero

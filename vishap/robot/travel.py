@@ -328,25 +328,27 @@ class TravelLimiter:
             k = lim / jn
             dx, dy, dz = dx * k, dy * k, dz * k
         ax, ay, az = ax + dx, ay + dy, az + dz
-        px, py, pz = ux, uy, uz
         ux, uy, uz = ux + ax * dt, uy + ay * dt, uz + az * dt
+        # A cap that fell faster than the device may brake is met at once: the velocity steps down to
+        # it. The step is not an acceleration the output goes on with: kept as one (up to the 40 m/s²
+        # limit), the jerk limit then took a/j (40 ms) to unwind it, and the braking ran on through
+        # zero, sending the device back away from its target under the landing finger (the world's
+        # wall approach, the caps 10 mm early for the estimate's error). What stays of the acceleration
+        # is what does not push past the cap: its braking part.
         un = math.sqrt(ux * ux + uy * uy + uz * uz)
-        clipped = False
-        if un > cap:  # a cap that fell faster than the device may brake: met at once
+        if un > cap:
             k = cap / un
             ux, uy, uz = ux * k, uy * k, uz * k
-            clipped = True
+            an = (ax * ux + ay * uy + az * uz) / (un * k)
+            if an > 0.0:
+                ax, ay, az = ax - an * ux / cap, ay - an * uy / cap, az - an * uz / cap
         un = ux * nx + uy * ny + uz * nz
         if un > capn:
             un -= capn
             ux, uy, uz = ux - un * nx, uy - un * ny, uz - un * nz
-            clipped = True
-        if clipped:  # the acceleration the clipped velocity really had (within the limit)
-            ax, ay, az = (ux - px) / dt, (uy - py) / dt, (uz - pz) / dt
-            an = math.sqrt(ax * ax + ay * ay + az * az)
-            if an > a:
-                k = a / an
-                ax, ay, az = ax * k, ay * k, az * k
+            an = ax * nx + ay * ny + az * nz
+            if an > 0.0:
+                ax, ay, az = ax - an * nx, ay - an * ny, az - an * nz
         self._x = (cx, cy, cz)
         self._v = (ux, uy, uz)
         self._a = (ax, ay, az)
