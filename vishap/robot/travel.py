@@ -42,7 +42,9 @@ panel's shelf through way-points, and a jerk-limited device turned there too slo
 Sideways moves are left at the near-finger cap: a cap on the 3-D distance slowed the device's
 last lateral correction and its run-up with the finger as much as the touch-down (docs/world.md).
 Without a normal the whole speed follows the normal cap's ramp in the 3-D distance. The caps win
-over the acceleration limit (a cap that falls faster than the device may brake is met at once).
+over the acceleration limit (a cap that falls faster than the device may brake is met at once; the
+step is not kept as an acceleration, which the jerk limit would take 40 ms to unwind while the output
+braked through zero and back away from its target).
 """
 from __future__ import annotations
 
