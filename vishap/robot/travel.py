@@ -137,7 +137,11 @@ class TravelLimiter:
         ``APPROACH_LEAD_S`` ahead with ``APPROACH_MARGIN_M`` for the estimate's error, 0.22 m/s near it.
         Not the default: on the panel's routed moves (way-points over the shelf) the jerk-limited
         device reached the third key too late in the closed-loop test and cut through an object in 4
-        of 20 ``bench world`` approaches (docs/robot.md)."""
+        of 20 ``bench world`` approaches (docs/robot.md). The lift off the shelf's top is not what holds
+        it back (latched, it no longer swings sideways): when the subject switches from the shelf the
+        device waits on to the key (0.467 s), the object gain, the key being announced, keeps the
+        shelf's released normal for its dwell and ramp (50 + 25 ms), so the lift rises only from
+        ≈ 0.545 s and the route reaches the key at 0.60 s, 25 ms before the finger lands."""
         return cls(max_speed_m_s, max_accel_m_s2, APPROACH_JERK_M_S3, near_speed_m_s=APPROACH_NEAR_SPEED_M_S,
                    lead_s=APPROACH_LEAD_S, margin_m=APPROACH_MARGIN_M)
 

@@ -160,6 +160,7 @@ class World:
         self.plan: np.ndarray | None = None  # the landing point the device waits on near the finger
         self._run = None  # the run-up's (touch time, tangential velocity)
         self.X_d: np.ndarray | None = None
+        self._lift_xy: np.ndarray | None = None  # where the lift off an object's top started (:meth:`_route`)
         self._t_last: float | None = None
         self._interval = 0.0  # spacing of the finger samples (s)
         self.p_meas: np.ndarray | None = None  # the latest measured fingertip
@@ -351,9 +352,11 @@ class World:
     def _route(self, start: np.ndarray, X: np.ndarray, subj: SceneObject) -> np.ndarray:
         """``X`` if the straight path from ``start`` is clear; else a way-point. Leaving the top of an
         object (its face over it) for a target off it, the device first lifts by ``path_margin_m`` (a
-        fast sideways move dips), then moves at that level until the way down to ``X`` is clear (the
-        whole face off a raised object's edge, not up into the finger's way); failing that, a way-point
-        above all obstacles."""
+        fast sideways move dips) straight up from the target it was last sent to, if that is over the
+        object, else from the device (latched for the whole lift: a lift point under the device's own
+        xy fed the device's sideways lag back into its target), then moves at that level until the
+        way down to ``X`` is clear (the whole face off a raised object's edge, not up into the
+        finger's way); failing that, a way-point above all obstacles."""
         m = self.path_margin_m
         on = [o for o in self.scene.objects if o.inside_extent(start, self.face_m) and abs(o.height(start)) < m]
         leaving = [o for o in on if not o.inside_extent(X)]
@@ -361,9 +364,15 @@ class World:
             return X
         level = max([start[2]] + [o.project(start)[2] + m for o in on])
         if leaving and start[2] < level - 0.5 * m:
-            lift = start.copy()
-            lift[2] = level
-            return lift
+            # the lift's xy is latched where it starts, on the last target (where the device was
+            # heading): one under the device's own xy fed its sideways lag back, and a jerk-limited
+            # output swung ±1 mm at 60–90 mm/s around it
+            if self._lift_xy is None:
+                prev = self.X_d
+                over = prev is not None and any(o.inside_extent(prev, self.face_m) for o in on)
+                self._lift_xy = (prev if over else start)[:2].copy()
+            return np.array([self._lift_xy[0], self._lift_xy[1], level])
+        self._lift_xy = None
         for u in (0.25, 0.5, 0.75, 1.0):
             via = start + (X - start) * u
             via[2] = level
