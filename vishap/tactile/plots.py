@@ -27,7 +27,7 @@ def _shade_states(ax, tick_t, states):
 
 
 def plot_drive(path, fs, glove, regions, pins, tick_t, states, title="tactile drive signals") -> Path:
-    from vishap.bench._common import new_figure, save_figure
+    from vishap._core.results import new_figure, save_figure
 
     t = np.arange(glove.shape[-1]) / fs + (tick_t[0] if len(tick_t) else 0.0)
     fig, axes = new_figure(4, 1, figsize=(9, 7), sharex=True)
@@ -51,7 +51,7 @@ def plot_drive(path, fs, glove, regions, pins, tick_t, states, title="tactile dr
 def plot_spectrogram(path, fs, signal_1d, tick_t=None, speed=None, title="sleeve spectrogram") -> Path:
     from scipy import signal as sps
 
-    from vishap.bench._common import new_figure, save_figure
+    from vishap._core.results import new_figure, save_figure
 
     nper = int(0.05 * fs)
     f, tt, S = sps.spectrogram(signal_1d, fs=fs, nperseg=nper, noverlap=nper * 3 // 4)
@@ -74,7 +74,7 @@ def plot_spectrogram(path, fs, signal_1d, tick_t=None, speed=None, title="sleeve
 
 def plot_emphasis(path, table: dict[str, dict[str, float]], title="channel emphasis per contact state") -> Path:
     """Grouped bars: RMS drive of each channel group for each state."""
-    from vishap.bench._common import new_figure, save_figure
+    from vishap._core.results import new_figure, save_figure
 
     states = list(table)
     channels = list(next(iter(table.values())))
