@@ -9,7 +9,10 @@ turns each sample into ``X_d``; the servo (:class:`vishap.robot.servo.ServoLoop`
 
 The system runs as it does in the demo and live mode: the camera model's samples go through the
 core's scene step and servo step (:mod:`vishap.runtime.core`: guard, force law and object gain
-``ᴼΛ`` per Eq. 8–9, controller with the gains file's gains, travel limiter).
+``ᴼΛ`` per Eq. 8–9, controller with the gains file's gains, travel limiter), the servo side built by
+the demos' own assembly code (:func:`vishap.apps.assemble.make_servo_side`: the approach travel
+limiter, encoder readings, the demos' physics substeps). The servo reads its encoders; the finger pad
+and every figure below read the plant's true tip state.
 
 Per approach we measure (:class:`ApproachResult`): the contact time (the pad first touches the
 passive object, or the finger crosses the surface if it misses), whether the device was in place
