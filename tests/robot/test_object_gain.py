@@ -173,3 +173,32 @@ def test_a_brief_dip_past_engage_does_not_engage_but_a_push_that_stays_does():
     s0.set_subject((0.0, 0.0, 0.0), np.eye(3))
     _, _, states0 = _run(s0, d)
     assert states0[205] == ENGAGED and _changes(states0) == 4
+
+
+def test_a_new_subject_away_from_the_device_releases_lambda_at_once_over_one_ramp():
+    """The world switched the subject (it never does under a touching finger) while the device waited
+    at the old one's surface: that interaction is over, so Λ goes back to free without waiting out the
+    dwell (waiting kept the panel shelf's released normal for 50 + 25 ms while the world sent the device
+    up over the shelf's edge to a key 20 mm lower, and it reached the key after the finger). Still one
+    change, ramped over ``ramp_s``; a new subject whose surface the device is already at changes nothing."""
+    s = ObjectGainScheduler(dt=DT)
+    s.set_subject((0.0, 0.0, 0.0), np.eye(3))
+    _, _, states = _run(s, np.full(30, 0.0002))  # waiting at the shelf's surface: λ_z released
+    assert states[-1] == SURFACE and s.n_changes == 1
+    s.set_subject((1.0, 1.0, 1.0), np.eye(3))  # a key, its surface 20 mm under the device
+    Ls, _, states = _run(s, np.full(60, -0.02), t0=0.030)
+    assert states[0] == FREE and s.n_changes == 2  # at once, 30 ms after the last change (dwell 50 ms)
+    zz = Ls[:, 2, 2]
+    assert np.max(np.diff(zz)) <= DT / s.ramp_s + 1e-12 and zz[0] < 0.1 and zz[int(s.ramp_s / DT)] == 1.0
+    # the same excursion without a new subject is held for the dwell: a brief lift is not an ending
+    s2 = ObjectGainScheduler(dt=DT)
+    s2.set_subject((0.0, 0.0, 0.0), np.eye(3))
+    _, _, st2 = _run(s2, np.r_[np.full(30, 0.0002), np.full(60, -0.02)])
+    assert st2[30] == SURFACE and st2[-1] == FREE
+    # a new subject whose surface the device is at (a neighbour in the same plane): no change
+    s3 = ObjectGainScheduler(dt=DT)
+    s3.set_subject((0.0, 0.0, 0.0), np.eye(3))
+    _run(s3, np.full(30, 0.0002))
+    s3.set_subject((0.0, 0.0, 0.0), np.eye(3))
+    _, _, st3 = _run(s3, np.full(30, 0.0002), t0=0.030)
+    assert all(st == SURFACE for st in st3) and s3.n_changes == 1

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from vishap.world.closed_loop import FingerPad, VisionModel, run_approach
+from vishap.apps.config import DemoConfig
+from vishap.world.closed_loop import FingerPad, VisionModel, make_device, run_approach
 from vishap.world.scene import load_scene
 from vishap.world.trajectories import FingerTrajectory, make_approaches
 from vishap.world.world import World
@@ -20,7 +21,10 @@ def _traj(scene, name, start_offset, speed, **kw):
 def test_wall_meets_finger_first_and_is_a_linear_spring():
     scene = load_scene("wall")
     tr = _traj(scene, "wall", [0.02, -0.015, 0.05], 0.3, slide=np.array([0.0, 0.02, 0.0]))
-    r = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s), vision=CLEAN)
+    # exact joint readings: the check below is that no law acts before the touch, read without the
+    # encoders' quantisation ripple in the holding servo's force (up to 0.1 N; servo_quality measures it)
+    step = make_device(scene, DemoConfig(encoder="exact"))
+    r = run_approach(scene, tr, World(scene, latency_s=CLEAN.latency_s), vision=CLEAN, step=step)
     assert r.touched and r.in_place and r.lead_time_s > 0.005
     assert r.contact_error_m < 0.001
     m = r.press_depth_m > 0.001
@@ -83,6 +87,21 @@ def test_closed_loop_runs_the_systems_servo_step():
     assert step.servo.travel is not None and step.servo.travel.ready  # the target went through the limiter
     assert step.guard.counts["finger_lost"] == 0 and step.last_action == "track"
     assert make_device(scene, travel=False).servo.travel is None
+
+
+def test_closed_loop_device_is_built_as_the_demos_build_theirs():
+    """One system: the bench's servo side comes from the demos' configuration and assembly code — the
+    approach travel limiter (jerk limit, caps on the finger ahead), encoders, substeps, target policy."""
+    from vishap.apps.assemble import make_servo_side
+
+    scene = load_scene("panel")
+    cfg = DemoConfig()
+    ours, demo = make_device(scene).servo, make_servo_side(cfg, scene).servo
+    slots = ("max_speed", "max_accel", "max_jerk", "near_m", "near_speed", "touch_speed", "lead_s", "margin_m")
+    assert {k: getattr(ours.travel, k) for k in slots} == {k: getattr(demo.travel, k) for k in slots}
+    assert np.isfinite(ours.travel.max_jerk) and ours.travel.lead_s > 0  # the approach configuration
+    assert (ours.device.sensor, ours.device.substeps) == (cfg.encoder, cfg.substeps) == (demo.device.sensor, demo.device.substeps)
+    assert type(ours.shaper) is type(demo.shaper) and ours.shaper.policy == cfg.servo_policy
 
 
 def test_device_ready_needs_a_still_device_on_the_surface_under_the_finger():

@@ -19,7 +19,7 @@ from vishap._core.pose import invert
 from vishap.apps.config import DemoConfig
 from vishap.world.finger import TIP_RADIUS_M
 
-__all__ = ["build", "meta", "calibrate", "make_world", "make_scene_step", "make_cycle", "vision_result",
+__all__ = ["build", "meta", "calibrate", "make_world", "make_scene_step", "make_servo_side", "make_cycle", "vision_result",
            "RIG_HFOV_DEG", "RIG_BASELINE_M", "TIP_RADIUS_M"]
 
 RIG_HFOV_DEG = 60.0
@@ -73,21 +73,29 @@ def make_scene_step(world, T_est):
     return SceneStep(world, T_est, tip_radius_m=TIP_RADIUS_M, mount_offset=world.scene.passive_object.mount_offset_m)
 
 
-def make_cycle(cfg: DemoConfig, scene, log, *, device: str = "sim", finger=None, tactile: bool = True):
-    """The 1 kHz side of a run: the device (:func:`vishap.runtime.assembly.open_device`), its guarded
-    servo step and the tactile sleeve, as a :class:`~vishap.apps.cycle.ServoCycle` writing into ``log``."""
-    from vishap.apps.cycle import ServoCycle
+def make_servo_side(cfg: DemoConfig, scene, *, device: str = "sim"):
+    """The device (:func:`vishap.runtime.assembly.open_device`; ``sim``: the MuJoCo PHANToM with the
+    scene's passive object, ``cfg``'s substeps and joint sensor) behind its guarded servo step with
+    ``cfg``'s target policy, travel limiter (:meth:`TravelLimiter.for_approach`) and guard timings:
+    what the demos, live mode and the world benchmark's closed loop run."""
     from vishap.robot.travel import TravelLimiter
     from vishap.runtime.assembly import make_servo_step, open_device
 
-    po = scene.passive_object
-    dev = (open_device("sim", passive_object=po.for_mujoco(), substeps=cfg.substeps, sensor=cfg.encoder)
+    dev = (open_device("sim", passive_object=scene.passive_object.for_mujoco(), substeps=cfg.substeps, sensor=cfg.encoder)
            if device == "sim" else open_device(device))
     travel = None if cfg.travel_speed_m_s is None else TravelLimiter.for_approach(cfg.travel_speed_m_s, cfg.travel_accel_m_s2)
-    step = make_servo_step(dev, scene, policy=cfg.servo_policy, travel=travel, retreat_m=cfg.retreat_m,
+    return make_servo_step(dev, scene, policy=cfg.servo_policy, travel=travel, retreat_m=cfg.retreat_m,
                            stale_after_s=cfg.stale_after_s, retreat_after_s=cfg.retreat_after_s)
-    return ServoCycle(step, scene_object=scene.objects[0], log=log, finger=finger, half_size_m=po.half_size_m,
-                      tactile=make_tactile(cfg, scene) if tactile else None)
+
+
+def make_cycle(cfg: DemoConfig, scene, log, *, device: str = "sim", finger=None, tactile: bool = True):
+    """The 1 kHz side of a run: the device and its guarded servo step (:func:`make_servo_side`) and the
+    tactile sleeve, as a :class:`~vishap.apps.cycle.ServoCycle` writing into ``log``."""
+    from vishap.apps.cycle import ServoCycle
+
+    step = make_servo_side(cfg, scene, device=device)
+    return ServoCycle(step, scene_object=scene.objects[0], log=log, finger=finger,
+                      half_size_m=scene.passive_object.half_size_m, tactile=make_tactile(cfg, scene) if tactile else None)
 
 
 def make_tactile(cfg: DemoConfig, scene):

@@ -1,7 +1,8 @@
 """``vishap bench world``: the encountered-type meeting in closed loop (VisHap §2.2–2.3, Fig. 6).
 
 A simulated finger (noisy, late, 30 Hz fingertip samples) approaches the objects of each scene at
-peak speeds 0.1–0.5 m/s, meets the MuJoCo PHANToM, presses, slides and leaves. The record holds:
+peak speeds 0.1–0.5 m/s, meets the MuJoCo PHANToM behind the demos' own servo side
+(:func:`vishap.apps.assemble.make_servo_side`, ``settings.servo``), presses, slides and leaves. The record holds:
 
 * ``device_in_place_rate`` — share of approaches where the device was within ``in_place_mm`` of the
   ideal contact point when the finger touched; ``contact_lead_time_ms_*`` — how long it had been
@@ -29,7 +30,7 @@ from vishap.bench._common import machine_info, median_us, new_figure, save_figur
 
 HELP = "world: closed-loop meeting on the MuJoCo device (lead, contact error, Fig. 6), policies, servo cost"
 
-#: (predictor, handover, contact model) on the system's servo step (gains file, guard, travel limiter);
+#: (predictor, handover, contact model) on the system's servo step (the demos': gains file, guard, travel limiter);
 #: ``both`` is the system's (:class:`vishap.apps.config.DemoConfig`), ``all`` the world's own default
 POLICIES = [
     ("none", "track", "ray"),
@@ -46,6 +47,18 @@ def _system_contact_model() -> str:
     from vishap.apps.config import DemoConfig
 
     return DemoConfig.model_fields["contact_model"].default
+
+
+def _servo_settings() -> dict:
+    """The servo side the closed loop runs: the demos' (``apps.assemble.make_servo_side`` from the
+    default :class:`~vishap.apps.config.DemoConfig`)."""
+    from vishap.apps.config import DemoConfig
+
+    cfg = DemoConfig()
+    return {"assembly": "vishap.apps.assemble.make_servo_side (as the demos and live mode)",
+            "travel": "TravelLimiter.for_approach", "travel_speed_m_s": cfg.travel_speed_m_s,
+            "travel_accel_m_s2": cfg.travel_accel_m_s2, "joint_sensor": cfg.encoder, "substeps": cfg.substeps,
+            "target_policy": cfg.servo_policy}
 
 
 def add_arguments(p) -> None:
@@ -349,7 +362,7 @@ def run(args) -> dict:
         "vision": {"rate_hz": vision.rate_hz, "latency_s": vision.latency_s, "noise_m": vision.noise_m, "dropout": vision.dropout},
         "in_place_mm": args.in_place_mm, "speeds_m_s": [0.1, 0.2, 0.3, 0.4, 0.5], "bow_fraction": args.bow,
         "predictor": "kalman", "handover": "hold", "contact_model": cm, "seed": args.seed,
-        "servo": "the system's servo step: gains file, guard, travel limiter (vishap.runtime.assembly)",
+        "servo": _servo_settings(),
     }
     record["charts"] = charts
     record["wall_time_s"] = time.perf_counter() - t_start

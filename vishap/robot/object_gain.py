@@ -29,7 +29,13 @@ positive inside; the law renders while the world announces an imminent or curren
 
 Every change waits until ``dwell_s`` has passed since the previous one (hysteresis keeps noise from
 crossing a threshold back; the dwell keeps a real but brief excursion from flipping Λ twice), except
-a change to ``FREE`` because the guard retreats or the interaction ended, which happens at once.
+a change to ``FREE`` because the guard retreats or the interaction ended, which happens at once. A
+new subject ends the interaction with the old one: if the device is not at the new subject's
+surface when it is named (``depth < −release_m``), Λ goes back to free at once too. The world never
+switches the subject under a touching finger, so what the dwell guards against cannot happen there,
+and waiting it out kept the old surface's released normal while the world routed the device to the
+new subject (the panel: 50 ms dwell + 25 ms blend from the shelf to a key 20 mm lower, and the lift
+over the shelf's edge started only then).
 Each change blends linearly from the Λ in force at that tick to the new one over ``ramp_s``
 (≥ 20 ms); a change during a blend starts from where the blend is.
 
@@ -131,13 +137,16 @@ class ObjectGainScheduler:
         self._scale_t0 = None  # when the force ramp started (None: idle)
         self._last_action = "idle"
         self._deep_t0 = None  # since when the device has been deeper than engage_m (None: it is not)
+        self._switched = False  # the subject changed since the last step: its interaction is a new one
         self.law_active = False
         self.changing = False
 
     def set_subject(self, contact_gain=None, R_robot_obj=None) -> None:
         """The subject's ``ᴼΛ`` diagonal in contact (``law.lambda_contact``) and its rotation.
 
-        ``None`` (no subject) falls back to free motion at the next :meth:`step`."""
+        ``None`` (no subject) falls back to free motion at the next :meth:`step`; so does a new subject
+        whose surface the device is not at (the old one's interaction is over: no dwell)."""
+        self._switched = True
         if contact_gain is None:
             self._contact_gain = None
             self._R = None
@@ -179,8 +188,10 @@ class ObjectGainScheduler:
             new = ENGAGED if pushed else SURFACE
         else:
             new = SURFACE if d < self.engage_m - self.hysteresis_m else ENGAGED
+        switched, self._switched = self._switched, False
         if new != st:
-            urgent = new == FREE and not announced  # retreat / interaction over: release at once
+            # retreat, interaction over, or a new subject the device is not at: release at once
+            urgent = new == FREE and (not announced or switched)
             if urgent or since >= self.dwell_s:
                 self._begin(new, t)
         self.law_active = self.state != FREE and d > 0.0

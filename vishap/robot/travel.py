@@ -35,9 +35,8 @@ The output's speed — the closing speed *and* the target's own velocity togethe
 
 :meth:`TravelLimiter.for_approach` is what the demos and live mode run: the jerk limit (1000 m/s³),
 the caps on the finger's state 40 ms ahead (``lead_s``) with a 10 mm ``margin_m``, 0.22 m/s near
-the finger (the arm overran its target's speed by up to 8 % there). The defaults leave the jerk
-unlimited and the caps on the distance now: the world's closed loop routes the device over the
-panel's shelf through way-points, and a jerk-limited device turned there too slowly (docs/robot.md).
+the finger (the arm overran its target's speed by up to 8 % there); the world's closed loop
+(``bench world``) runs it too. The defaults leave the jerk unlimited and the caps on the distance now.
 
 Sideways moves are left at the near-finger cap: a cap on the 3-D distance slowed the device's
 last lateral correction and its run-up with the finger as much as the touch-down (docs/world.md).
@@ -135,13 +134,10 @@ class TravelLimiter:
     def for_approach(cls, max_speed_m_s: float = DEFAULT_SPEED_M_S, max_accel_m_s2: float = DEFAULT_ACCEL_M_S2):
         """The approach configuration: the jerk limit, the caps near the finger on its state
         ``APPROACH_LEAD_S`` ahead with ``APPROACH_MARGIN_M`` for the estimate's error, 0.22 m/s near it.
-        Not the default: on the panel's routed moves (way-points over the shelf) the jerk-limited
-        device reached the third key too late in the closed-loop test and cut through an object in 4
-        of 20 ``bench world`` approaches (docs/robot.md). The lift off the shelf's top is not what holds
-        it back (latched, it no longer swings sideways): when the subject switches from the shelf the
-        device waits on to the key (0.467 s), the object gain, the key being announced, keeps the
-        shelf's released normal for its dwell and ramp (50 + 25 ms), so the lift rises only from
-        ≈ 0.545 s and the route reaches the key at 0.60 s, 25 ms before the finger lands."""
+        What the demos, live mode and the world's closed loop run (``apps.assemble.make_servo_side``).
+        On the panel's routed moves the jerk-limited device reached the third key late while the
+        object gain kept the shelf's released normal through its dwell after the subject switch; a
+        new subject now releases it at once (:class:`~vishap.robot.object_gain.ObjectGainScheduler`)."""
         return cls(max_speed_m_s, max_accel_m_s2, APPROACH_JERK_M_S3, near_speed_m_s=APPROACH_NEAR_SPEED_M_S,
                    lead_s=APPROACH_LEAD_S, margin_m=APPROACH_MARGIN_M)
 

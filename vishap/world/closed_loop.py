@@ -9,7 +9,10 @@ turns each sample into ``X_d``; the servo (:class:`vishap.robot.servo.ServoLoop`
 
 The system runs as it does in the demo and live mode: the camera model's samples go through the
 core's scene step and servo step (:mod:`vishap.runtime.core`: guard, force law and object gain
-``ᴼΛ`` per Eq. 8–9, controller with the gains file's gains, travel limiter).
+``ᴼΛ`` per Eq. 8–9, controller with the gains file's gains, travel limiter), the servo side built by
+the demos' own assembly code (:func:`vishap.apps.assemble.make_servo_side`: the approach travel
+limiter, encoder readings, the demos' physics substeps). The servo reads its encoders; the finger pad
+and every figure below read the plant's true tip state.
 
 Per approach we measure (:class:`ApproachResult`): the contact time (the pad first touches the
 passive object, or the finger crosses the surface if it misses), whether the device was in place
@@ -114,15 +117,19 @@ class ApproachResult:
     ready_checks: dict = field(default_factory=dict)  # each of its conditions (:func:`ready_checks`)
 
 
-def make_device(scene: Scene, *, substeps: int = 1, policy: str = "interpolate", travel: bool = True):
-    """The MuJoCo PHANToM carrying the scene's passive object behind the system's guarded servo step
-    (:func:`vishap.runtime.assembly.make_servo_step`: gains from the gains file, limits from the
-    device, the travel limiter at its defaults unless ``travel`` is False)."""
-    from vishap.robot.travel import TravelLimiter
-    from vishap.runtime.assembly import make_servo_step, open_device
+def make_device(scene: Scene, cfg=None, *, travel: bool = True):
+    """The device and its guarded servo step exactly as the demos and live mode build them
+    (:func:`vishap.apps.assemble.make_servo_side` from ``cfg``, a :class:`~vishap.apps.config.DemoConfig`;
+    None: the demos' defaults — the MuJoCo PHANToM with the scene's passive object, its substeps and
+    encoders, gains from the gains file, limits from the device, the approach travel limiter).
+    ``travel`` False runs the same servo step without a travel limiter (unlimited travel)."""
+    from vishap.apps.assemble import make_servo_side
+    from vishap.apps.config import DemoConfig
 
-    dev = open_device("sim", passive_object=scene.passive_object.for_mujoco(), substeps=substeps)
-    return make_servo_step(dev, scene, policy=policy, travel=TravelLimiter() if travel else None)
+    cfg = cfg or DemoConfig()
+    if not travel:
+        cfg = cfg.model_copy(update={"travel_speed_m_s": None})
+    return make_servo_side(cfg, scene)
 
 
 def run_approach(
@@ -134,7 +141,6 @@ def run_approach(
     pad: FingerPad | None = None,
     seed: int = 0,
     in_place_m: float = 0.001,
-    substeps: int = 1,
     stop_after_contact_s: float | None = None,
     record: bool = False,
     step=None,
@@ -150,7 +156,7 @@ def run_approach(
 
     rng = np.random.default_rng(seed)
     pad = pad or FingerPad()
-    step = step or make_device(scene, substeps=substeps)
+    step = step or make_device(scene)
     plant, ctrl, servo = step.device, step.controller, step.servo
     world.reset()
     scene_step = SceneStep(world, np.eye(4), tip_radius_m=0.0, mount_offset=scene.passive_object.mount_offset_m)
@@ -206,10 +212,12 @@ def run_approach(
             misses = 0 if meas is not None else misses + 1
             rec, _, _ = scene_step.step(t_cap, meas is not None, nan3 if meas is None else meas,
                                         _DECAY ** misses, p_dev, lost=False)
-        # the finger pushes on the passive object
+        # the finger pushes on the passive object where it truly is (the servo reads its encoders)
         p_f, v_f = P_f[k], V_f[k]
         s = scene.objects[rec.subject] if rec.subject >= 0 else obj
-        F_pad = pad.force_on_device(p_f, v_f, p_dev, state.v_robot, s.normal, half)
+        p_tip, v_tip = plant.true_tip_state()
+        p_true = p_tip + step.mount
+        F_pad = pad.force_on_device(p_f, v_f, p_true, v_tip, s.normal, half)
         plant.apply_tip_force(F_pad)
         c0 = perf_counter()
         step.tick(t, rec, state)
@@ -219,8 +227,8 @@ def run_approach(
         f_n[k] = F[0] * nrm[0] + F[1] * nrm[1] + F[2] * nrm[2]
         f_t[k] = math.sqrt(max(F[0] * F[0] + F[1] * F[1] + F[2] * F[2] - f_n[k] * f_n[k], 0.0))
         d_f[k] = -obj.height(p_f)
-        dev[k] = p_dev
-        v_dev[k] = state.v_robot
+        dev[k] = p_true
+        v_dev[k] = v_tip
         xd_log[k] = np.asarray(rec.X_ee) + step.mount
         if servo.travel is not None:
             v_cmd[k] = servo.travel._v
