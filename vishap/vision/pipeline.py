@@ -287,7 +287,8 @@ class VisionPipeline:
         ref = refine_tip_pair(self.rig, images[0], images[1], tl, tr, self.config.refine, masks=self._masks)
         out = {"left": tl.uv, "right": tr.uv}, sp
         if ref.ok:
-            spr = triangulate_tip(self.rig, ref.uv_left, ref.uv_right, self.config.stereo)
+            spr = (triangulate_tip(self.rig, ref.uv_left, ref.uv_right, self.config.stereo) if ref.rect_left is None
+                   else triangulate_rectified_tip(self.rig, ref.rect_left, ref.rect_right, self.config.stereo))
             if spr.ok:
                 out = {"left": ref.uv_left, "right": ref.uv_right}, spr
         self._refine_ms += (time.perf_counter() - ts) * 1e3
