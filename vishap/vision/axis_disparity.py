@@ -185,21 +185,14 @@ def _side_points(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, to_ra
     x1, y1 = min(int(max(cx, ex) + m) + 2, mw), min(int(max(cy, ey) + m) + 2, mh)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return f"the finger behind the cap is outside the {side} view's mask"
-    z = _inner_crossings(mask[y0:y1, x0:x1])
-    # a first, loose selection about the detector's axis (its direction is coarse); (z − c)·conj(d)
-    # is (along the axis) − i(signed distance from it), here in radii
-    w = (z - complex(cx - x0, cy - y0)) * complex(d0x / r, -d0y / r)
-    sel = (np.abs(w.real - 0.5 * to_radii) <= 0.5 * to_radii + 0.5) & (np.abs(np.abs(w.imag) - 1.0) <= 0.6)
-    n = int(np.count_nonzero(sel))
-    if n < 2 * min_points:
-        return f"{n} edge points behind the cap in the {side} view"
-    # the cap centre, a point on the detector's axis and the crossings, rectified in one call
-    raw = np.empty(n + 2, complex)
-    raw[0] = complex(u, v)
-    raw[1] = complex(u + 2.0 * r * d0x, v + 2.0 * r * d0y)
-    raw[2:] = z[sel]
-    raw[2:] += complex(x0 + origin[0], y0 + origin[1])
-    rect = rig.rectify_points_fast(raw.view(np.float64).reshape(-1, 2), side).view(complex).ravel()
+    # the cap centre, a point on the detector's axis and the crossings, rectified in one call (all
+    # the crop's crossings: the fit's own band, about the rectified axis, picks the sides' points;
+    # the crop holds every point that band can reach)
+    z = np.concatenate(((u + 1j * v, u + 2.0 * r * d0x + 1j * (v + 2.0 * r * d0y)),
+                        _inner_crossings(mask[y0:y1, x0:x1]) + complex(x0 + origin[0], y0 + origin[1])))
+    if len(z) < 2 + 2 * min_points:
+        return f"{len(z) - 2} edge points behind the cap in the {side} view"
+    rect = rig.rectify_points_fast(z.view(np.float64).reshape(-1, 2), side).view(complex).ravel()
     cap = complex(rect[0])
     d = rect[1] - cap
     d /= abs(d) + 1e-12

@@ -59,6 +59,9 @@ def triangulate_tip(rig: StereoRig, uv_left, uv_right, config: StereoConfig = St
     return triangulate_rectified_tip(rig, rl, rr, config)
 
 
+_J_S = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.5, 0.0, 0.5], [1.0, 0.0, -1.0, 0.0]])  # ds/d(ul, vl, ur, vr): s = (u, v, d)
+
+
 def triangulate_rectified_tip(rig: StereoRig, rl, rr, config: StereoConfig = StereoConfig()) -> StereoPoint:
     """As :func:`triangulate_tip`, for pixels already in the rectified images."""
     rl = np.asarray(rl, dtype=np.float64)
@@ -76,10 +79,8 @@ def triangulate_rectified_tip(rig: StereoRig, rl, rr, config: StereoConfig = Ste
     s = np.array([rl[0], v, disp, 1.0])
     hom = rig.Q @ s
     p_rect = hom[:3] / hom[3]
-    # first-order propagation: ds/d(ul, vl, ur, vr)
-    J_s = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.5, 0.0, 0.5], [1.0, 0.0, -1.0, 0.0]])
     J_p = (rig.Q[:3, :3] - np.outer(p_rect, rig.Q[3, :3])) / hom[3]  # dp/d(u, v, d)
-    J = J_p @ J_s
+    J = J_p @ _J_S
     cov_rect = (config.sigma_px ** 2) * (J @ J.T)
     R1 = rig.R1
     p_cam = R1.T @ p_rect
