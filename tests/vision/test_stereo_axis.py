@@ -261,3 +261,15 @@ def test_edge_crossings_of_any_crop_size_are_the_pixel_pairs_that_differ(rng):
         got = _inner_crossings(crop)
         assert np.array_equal(got, plain(crop)), h
     assert len(_inner_crossings(np.zeros((20, 20), np.uint8))) == 0
+
+
+def test_one_unrectified_point_in_plain_floats_is_the_array_form(ideal_rig, distorted_rig, rng):
+    """The refined pair's two pixels go back to raw pixels one at a time in plain floats (a view
+    without distortion) or through the array form (with distortion): the same pixels either way."""
+    from vishap.vision.stereo import _unrectify_point, _unrectify_points
+
+    for rig in (ideal_rig, distorted_rig):
+        for side in ("left", "right"):
+            for u, v in rng.uniform((0, 0), (640, 480), (20, 2)):
+                np.testing.assert_allclose(_unrectify_point(rig, float(u), float(v), side),
+                                           _unrectify_points(rig, (u, v), side)[0], rtol=0, atol=1e-9)
