@@ -186,8 +186,8 @@ def _side_points(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, to_ra
     if x1 - x0 < 3 or y1 - y0 < 3:
         return f"the finger behind the cap is outside the {side} view's mask"
     # the cap centre, a point on the detector's axis and the crossings, rectified in one call (all
-    # the crop's crossings: the fit's own band, about the rectified axis, picks the sides' points;
-    # the crop holds every point that band can reach)
+    # the crop's crossings: the fit's own band about the rectified axis picks the sides' points, and
+    # the crop spans that band about the detector's axis with a margin of 2 px)
     z = np.concatenate(((u + 1j * v, u + 2.0 * r * d0x + 1j * (v + 2.0 * r * d0y)),
                         _inner_crossings(mask[y0:y1, x0:x1]) + complex(x0 + origin[0], y0 + origin[1])))
     if len(z) < 2 + 2 * min_points:
