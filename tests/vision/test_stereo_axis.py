@@ -214,3 +214,62 @@ def test_unrectified_points_of_an_undistorted_view_are_cv2s(ideal_rig, distorted
             got = _unrectify_points(rig, rect, side)
             np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9)
             np.testing.assert_allclose(got, raw, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("rig_name", ["ideal_rig", "distorted_rig"])
+def test_both_views_fitted_at_once_give_each_view_alone(rig_name, request, rng):
+    """axis_lines (the pipeline's call: both views' points through one set of array operations)
+    gives each view's axis_line to rounding, and a view that cannot be measured refuses the pair
+    with that view's reason."""
+    from vishap.vision.axis_disparity import axis_lines
+
+    rig = request.getfixturevalue(rig_name)
+    for k in range(6):
+        cl = np.array([330.0, 230.0]) + rng.uniform(0, 1, 2)
+        ang, r = rng.uniform(15, 40) * (1 if k % 2 else -1), rng.uniform(6.5, 9.0)
+        ml, _ = _finger_mask(cl, ang, r)
+        mr, _ = _finger_mask(cl - (55.0 + rng.uniform(0, 1), 0.0), ang + rng.uniform(-3, 3), r * 0.97)
+        views = [("left", ml, (0, 0), _tip(ml, r, cl)), ("right", mr, (0, 0), _tip(mr, 0.97 * r, cl - (55.0, 0.0)))]
+        both = axis_lines(rig, views, **KW)
+        for (side, m, org, tip), line in zip(views, both):
+            alone = axis_line(rig, side, m, org, tip, **KW)
+            assert not isinstance(line, str) and not isinstance(alone, str), (line, alone)
+            np.testing.assert_allclose(line.centre, alone.centre, rtol=0, atol=1e-10)
+            assert line.slope == pytest.approx(alone.slope, abs=1e-12) and line.points == alone.points
+            assert line.rms_px == pytest.approx(alone.rms_px, abs=1e-10)
+            assert line.v_mean == pytest.approx(alone.v_mean, abs=1e-10)
+    flat, _ = _finger_mask((270.1, 230.2), 80.0, 8.0)  # the right view's finger along the rows
+    views[1] = ("right", flat, (0, 0), _tip(flat, 8.0, (270.1, 230.2)))
+    got = axis_lines(rig, views, **KW)
+    assert got[0] == got[1] and "rows in the right view" in got[0]
+
+
+def test_edge_crossings_of_any_crop_size_are_the_pixel_pairs_that_differ(rng):
+    """The crossings come from grids cached by crop width (rows rounded up to a power of two): crops
+    of one width and different heights, below and above each cached height, give the crossings of
+    the plain per-pixel-pair rule, in its order."""
+    from vishap.vision.axis_disparity import _inner_crossings
+
+    def plain(crop):
+        b = crop > 0
+        hy, hx = np.nonzero(b[1:-1, 1:] != b[1:-1, :-1])
+        vy, vx = np.nonzero(b[1:, 1:-1] != b[:-1, 1:-1])
+        return np.concatenate([(hx + 0.5) + 1j * (hy + 1.0), (vx + 1.0) + 1j * (vy + 0.5)])
+
+    for h in (3, 5, 31, 32, 33, 64, 65, 40, 7, 130):
+        crop = ((rng.random((h, 37)) > 0.6) * 255).astype(np.uint8)
+        got = _inner_crossings(crop)
+        assert np.array_equal(got, plain(crop)), h
+    assert len(_inner_crossings(np.zeros((20, 20), np.uint8))) == 0
+
+
+def test_one_unrectified_point_in_plain_floats_is_the_array_form(ideal_rig, distorted_rig, rng):
+    """The refined pair's two pixels go back to raw pixels one at a time in plain floats (a view
+    without distortion) or through the array form (with distortion): the same pixels either way."""
+    from vishap.vision.stereo import _unrectify_point, _unrectify_points
+
+    for rig in (ideal_rig, distorted_rig):
+        for side in ("left", "right"):
+            for u, v in rng.uniform((0, 0), (640, 480), (20, 2)):
+                np.testing.assert_allclose(_unrectify_point(rig, float(u), float(v), side),
+                                           _unrectify_points(rig, (u, v), side)[0], rtol=0, atol=1e-9)

@@ -37,6 +37,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--frames", type=int, default=60, help="frames per sequence (default 60)")
     p.add_argument("--skin", default=None, help="skin model YAML (default: the shipped model)")
     p.add_argument("--quick", action="store_true", help="fewer variants and peers (for a smoke run)")
+    p.add_argument("--stages", default=",".join(STAGES),
+                   help=f"comma-separated stages to run (default all: {','.join(STAGES)})")
+    p.add_argument("--variants", nargs="*", default=None,
+                   help="refinement variants to run: those whose name contains one of these words (default all)")
+    p.add_argument("--rounds", type=int, default=None, help="passes of the speed stage (default 3; --quick 1)")
+
+
+STAGES = ("pipeline", "refinement", "segmentation", "stereo", "kalman", "speed", "constants")
 
 
 def _default_data(tmp: Path) -> list[Path]:
@@ -149,8 +157,12 @@ def _bench_speed(seq, frames, skin, learn: int, rounds: int) -> dict:
     the waits a shared machine adds to the wall clock), median over frames of each kind and over
     ``rounds`` passes, each pass a fresh pipeline: full-frame search every frame (``tracking=False``;
     all frames and those with the fingertip visible in both views), and the shipped tracking mode
-    by the left view's mode of each frame (tracked window, full frame without a track, recheck)."""
+    by the left view's mode of each frame (tracked window, full frame without a track, recheck);
+    beside it the tracking mode with the cap fits alone (no side-edge axis), so the axis's cost is
+    measured in the same run. The three configurations alternate pass by pass (a shared machine's
+    load then weighs on all alike)."""
     from vishap.vision.pipeline import PipelineConfig, VisionPipeline
+    from vishap.vision.stereo import RefineConfig
 
     gt = seq.gt
     n = len(frames)
@@ -158,10 +170,12 @@ def _bench_speed(seq, frames, skin, learn: int, rounds: int) -> dict:
                & np.asarray(gt.get("tip_visible_right", np.ones(n, bool)))[:n].astype(bool))
     out = {"clock": "process_time", "rounds": rounds, "image_size": list(seq.rig.image_size), "goals_ms": SPEED_GOALS_MS,
            "cpu_ms_per_pair": {}, "frames": {}}
-    for name, cfg in (("full frame", PipelineConfig(tracking=False, learn_frames=learn)),
-                      ("tracked", PipelineConfig(learn_frames=learn))):
-        per_round: dict[str, list] = {}
-        for _ in range(rounds):
+    configs = (("full frame", PipelineConfig(tracking=False, learn_frames=learn)),
+               ("tracked", PipelineConfig(learn_frames=learn)),
+               ("cap fits only", PipelineConfig(learn_frames=learn, refine=RefineConfig(method="none"))))
+    per_round: dict[str, list] = {}
+    for _ in range(rounds):
+        for name, cfg in configs:
             pipe = VisionPipeline(seq.rig, skin_model=skin, config=cfg)
             kinds: dict[str, list] = {}
             for i, f in enumerate(frames):
@@ -172,14 +186,17 @@ def _bench_speed(seq, frames, skin, learn: int, rounds: int) -> dict:
                     continue
                 if name == "full frame":
                     keys = ["full frame, all frames"] + (["full frame, fingertip visible"] if visible[i] else [])
-                else:
+                elif name == "tracked":
                     keys = [f"tracking on: {est.mode}"]
+                else:
+                    keys = [f"cap fits only (no side-edge axis): {est.mode}"]
                 for k in keys:
                     kinds.setdefault(k, []).append(ms)
             for k, v in kinds.items():
                 per_round.setdefault(k, []).append(float(np.median(v)))
                 out["frames"][k] = len(v)
-        out["cpu_ms_per_pair"] |= {k: float(np.median(v)) for k, v in per_round.items()}
+    out["cpu_ms_per_pair_rounds"] = per_round
+    out["cpu_ms_per_pair"] = {k: float(np.median(v)) for k, v in per_round.items()}
     return out
 
 
@@ -207,20 +224,60 @@ def refinement_variants() -> dict:
     }
 
 
-def _bench_refinement(folder, n, skin, quick=False):
+WORKING_RANGE_M = (0.4, 0.8)  # issue 14 item 9: 3-D tip ≤ 1.5 mm RMS over this true depth
+
+
+def working_range_rms(by_depth: dict | None, lo: float = WORKING_RANGE_M[0], hi: float = WORKING_RANGE_M[1]):
+    """The 3-D RMS without gross errors over the depth bins of ``by_depth`` (``vishap eval vision``'s
+    per-bin figures) that lie within [lo, hi) m, pooled by their frames: ``(rms_mm, frames)``."""
+    num = den = 0.0
+    for key, b in (by_depth or {}).items():
+        a, z = (float(x) for x in key.split("-"))
+        if a >= lo - 1e-9 and z <= hi + 1e-9 and b.get("tip3d_rms_mm_without_gross") is not None:
+            n = b["frames"] - b["gross"]
+            num += n * b["tip3d_rms_mm_without_gross"] ** 2
+            den += n
+    return (float(np.sqrt(num / den)) if den else None), int(den)
+
+
+def _bench_refinement(folder, n, skin, quick=False, names=None):
     """Each variant of :func:`refinement_variants` over the same frames: 3-D RMS (all frames with
-    the tip visible and found, and without gross errors), the error decomposition by depth, ms."""
+    the tip visible and found, and without gross errors; over the working range), the error
+    decomposition by depth, ms. ``names``: only the variants whose name holds one of these words."""
     from vishap.vision.evaluate import evaluate_sequence
 
     out = {}
     variants = refinement_variants()
-    if quick:  # before and shipped only
-        variants = {k: v for i, (k, v) in enumerate(variants.items()) if i in (1, 2)}
+    if names:
+        variants = {k: v for k, v in variants.items() if any(w in k for w in names)}
+    elif quick:  # before and shipped only
+        variants = {k: v for k, v in variants.items() if k.endswith(("(before)", "(shipped)"))}
     for name, cfg in variants.items():
         r = evaluate_sequence(folder, skin_model=skin, config=cfg, max_frames=n, seg_every=10 ** 9)
         out[name] = {k: r.get(k) for k in ("ms_per_pair", "ms_per_pair_tracked", "ms_per_pair_full", "tip2d_rms_px",
                                            "tip3d_rms_mm", "tip3d_rms_mm_without_gross", "gross_errors",
                                            "tip3d_median_mm", "detection_rate", "visible_frames", "by_depth")}
+        out[name]["tip3d_rms_mm_working_range"], out[name]["working_range_frames"] = working_range_rms(r.get("by_depth"))
+    return out
+
+
+def _refinement_summary(record) -> dict:
+    """Per refinement variant over the sequences: the range of the 3-D RMS without gross errors and
+    of the working-range RMS, and the working-range RMS pooled over all sequences' frames."""
+    per: dict[str, list] = {}
+    for rec in record["sequences"].values():
+        for name, r in rec.get("refinement", {}).items():
+            per.setdefault(name, []).append(r)
+    out = {}
+    for name, rs in per.items():
+        wr = [(r["tip3d_rms_mm_working_range"], r["working_range_frames"]) for r in rs
+              if r.get("tip3d_rms_mm_working_range") is not None]
+        wog = [r["tip3d_rms_mm_without_gross"] for r in rs if r.get("tip3d_rms_mm_without_gross") is not None]
+        pooled = (float(np.sqrt(sum(v * v * k for v, k in wr) / sum(k for _, k in wr))) if wr else None)
+        out[name] = {"sequences": len(rs), "without_gross_mm": [min(wog), max(wog)] if wog else None,
+                     "working_range_mm": [min(v for v, _ in wr), max(v for v, _ in wr)] if wr else None,
+                     "working_range_pooled_mm": pooled, "gross_errors": sum(r["gross_errors"] or 0 for r in rs),
+                     "goal_mm": 1.5}
     return out
 
 
@@ -429,41 +486,57 @@ def _chart_constants(rec, path):
 
 
 def run(args: argparse.Namespace) -> dict:
+    from vishap._core.errors import ConfigError
     from vishap.vision.skin_model import SkinModel
 
+    stages = [s.strip() for s in str(getattr(args, "stages", None) or ",".join(STAGES)).split(",") if s.strip()]
+    unknown = [s for s in stages if s not in STAGES]
+    if unknown:
+        raise ConfigError(f"--stages: unknown stage(s) {', '.join(unknown)}; expected some of {', '.join(STAGES)}",
+                          field="stages")
+    variants = getattr(args, "variants", None)
+    rounds = getattr(args, "rounds", None) or (1 if args.quick else 3)
     out_dir = Path(args.out)
     skin = SkinModel.load(args.skin) if args.skin else SkinModel.load()
     rng = np.random.default_rng(0)
-    record = {"machine": machine_info(), "cv2_threads": cv2.getNumThreads(), "sequences": {}}
+    record = {"machine": machine_info(), "cv2_threads": cv2.getNumThreads(), "stages": stages, "sequences": {}}
+    per_seq = [s for s in stages if s != "constants"]
     with tempfile.TemporaryDirectory() as tmp:
         from vishap._core.results import progress
 
         folders = [Path(d) for d in args.data] if args.data else _default_data(Path(tmp))
-        bar = progress(total=6 * len(folders), desc="bench vision", unit="stage", quiet=getattr(args, "quiet", False))
+        bar = progress(total=len(per_seq) * len(folders), desc="bench vision", unit="stage",
+                       quiet=getattr(args, "quiet", False))
         for folder in folders:
             seq, frames = _load(folder, args.frames)
             learn = int(seq.gt.get("hand_free_frames", 10))
             if len(frames) < learn + 5:
                 record["sequences"][folder.name] = {"skipped": f"{len(frames)} frames: fewer than {learn} background + 5"}
-                bar.update(6)
+                bar.update(len(per_seq))
                 continue
             rec = {"frames": len(frames), "skin_model": skin.source}
-            for stage, measure in (("pipeline", lambda: _bench_pipeline(folder, args.frames, skin)),
-                                   ("refinement", lambda: _bench_refinement(folder, args.frames, skin, args.quick)),
-                                   ("segmentation", lambda: _bench_segmentation(frames, learn, skin, args.quick)),
-                                   ("stereo", lambda: _bench_stereo(seq, frames, skin, learn)),
-                                   ("kalman", lambda: _bench_kalman(seq.gt, rng)),
-                                   ("speed", lambda: _bench_speed(seq, frames, skin, learn, 1 if args.quick else 3))):
+            measures = {"pipeline": lambda: _bench_pipeline(folder, args.frames, skin),
+                        "refinement": lambda: _bench_refinement(folder, args.frames, skin, args.quick, variants),
+                        "segmentation": lambda: _bench_segmentation(frames, learn, skin, args.quick),
+                        "stereo": lambda: _bench_stereo(seq, frames, skin, learn),
+                        "kalman": lambda: _bench_kalman(seq.gt, rng),
+                        "speed": lambda: _bench_speed(seq, frames, skin, learn, rounds)}
+            for stage in per_seq:
                 bar.set_postfix_str(f"{folder.name}: {stage}")
-                rec[stage] = measure()
+                rec[stage] = measures[stage]()
                 bar.update(1)
             record["sequences"][folder.name] = rec
         bar.close()
-    record["chart"] = str(_chart(record, out_dir / "vision_speed_accuracy.png"))
-    record["chart_refinement"] = str(_chart_refinement(record, out_dir / "vision_stereo_refinement.png"))
-    record["detector_constants"] = _bench_detector_constants(rng)
-    record["chart_detector_constants"] = str(_chart_constants(record["detector_constants"],
-                                                              out_dir / "vision_detector_constants.png"))
+    if "refinement" in stages:
+        record["refinement_summary"] = _refinement_summary(record)
+    if any(s in stages for s in ("segmentation", "pipeline", "stereo", "kalman")):
+        record["chart"] = str(_chart(record, out_dir / "vision_speed_accuracy.png"))
+    if "refinement" in stages:
+        record["chart_refinement"] = str(_chart_refinement(record, out_dir / "vision_stereo_refinement.png"))
+    if "constants" in stages:
+        record["detector_constants"] = _bench_detector_constants(rng)
+        record["chart_detector_constants"] = str(_chart_constants(record["detector_constants"],
+                                                                  out_dir / "vision_detector_constants.png"))
     return record
 
 
@@ -474,19 +547,19 @@ def _chart(record, path):
     multi = len(seqs) > 1
     for sname, rec in seqs.items():
         tag = f"{sname}: " if multi else ""
-        for name, r in rec["segmentation"].items():
+        for name, r in rec.get("segmentation", {}).items():
             mk = {"variant": "o", "backend": "s", "peer": "^"}[r["kind"]]
             a1.scatter(r["ms_per_image"], 100 * r["seg_correct"], marker=mk)
             a1.annotate(f"{tag}{name}", (r["ms_per_image"], 100 * r["seg_correct"]), fontsize=7)
-        for name, r in rec["pipeline"].items():
+        for name, r in rec.get("pipeline", {}).items():
             if r["ms_per_pair"] is not None and r["tip3d_rms_mm"] is not None:
                 a2.scatter(r["ms_per_pair"], r["tip3d_rms_mm"])
                 a2.annotate(f"{tag}{name} (det {r['detection_rate']:.2f})", (r["ms_per_pair"], r["tip3d_rms_mm"]), fontsize=7)
-        for name, r in rec["stereo"].items():
+        for name, r in rec.get("stereo", {}).items():
             if isinstance(r, dict) and r.get("tip3d_rms_mm") is not None:
                 a3.scatter(r["ms_per_pair"], r["tip3d_rms_mm"])
                 a3.annotate(f"{tag}{name} (valid {r['valid_fraction']:.2f})", (r["ms_per_pair"], r["tip3d_rms_mm"]), fontsize=7)
-        for name, r in rec["kalman"].items():
+        for name, r in rec.get("kalman", {}).items():
             a4.scatter(max(r["us_per_step"], 0.1), r["rms_px"])
             a4.annotate(tag + name, (max(r["us_per_step"], 0.1), r["rms_px"]), fontsize=7)
     a1.set(xscale="log", xlabel="ms per 640×480 image (median)", ylabel="segmentation correct, %",

@@ -25,18 +25,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from vishap.vision.rig import StereoRig
 
-__all__ = ["AxisLine", "axis_line", "axis_disparity"]
+__all__ = ["AxisLine", "axis_line", "axis_lines", "axis_disparity"]
 
 
 @dataclass
 class AxisLine:
     """The image of the finger's axis behind the cap in one rectified view: ``u = u_c + slope·(v − v_c)``
-    (``centre``: the axis's point beside the cap centre)."""
+    (``centre``: the axis's point nearest the cap centre)."""
 
     centre: np.ndarray        # (2,) the axis's point nearest the cap centre (rectified pixels)
     slope: float              # axis column per row
@@ -66,9 +67,115 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
     The detector's direction only seeds the axis, which the fit then measures. Both sides must
     reach 0.7 ``to_radii`` behind the centre (the outline of a cap with no finger behind it stops
     within a radius)."""
+    return axis_lines(rig, [(side, mask, origin, tip)], from_radii=from_radii, to_radii=to_radii,
+                      max_tilt_deg=max_tilt_deg, width_tol=width_tol, max_residual_px=max_residual_px,
+                      min_points=min_points)[0]
+
+
+def axis_lines(rig: StereoRig, views, *, from_radii: float, to_radii: float, max_tilt_deg: float, width_tol: float,
+               max_residual_px: float, min_points: int) -> list:
+    """:func:`axis_line` of several views at once (``views``: ``(side, mask, origin, tip)`` each): the
+    same lines, with the fit's array work done once for all views' points (a tracked pair spends its
+    time on the number of NumPy calls, not on their 50–60 points per view). Returns one entry per
+    view, an :class:`AxisLine` or the reason; after the first view that fails, the rest are not fitted
+    (their entries repeat that reason)."""
+    seeds, parts = [], []
+    for side, mask, origin, tip in views:
+        got = _side_points(rig, side, mask, origin, tip, to_radii, width_tol, min_points)
+        if isinstance(got, str):
+            return [got] * len(views)
+        seeds.append(got[:3])
+        parts.append(got[3])
+    K = len(views)
+    counts = [len(q) for q in parts]
+    p = np.concatenate(parts) if K > 1 else parts[0]          # each view's points about its cap centre
+    # each point as (u, v, 1) in its view's block of three columns: one product maps every point
+    # into its own view's axis frame
+    X = np.zeros((len(p), 3 * K))
+    start = 0
+    for k, n in enumerate(counts):
+        X[start:start + n, 3 * k] = parts[k].real
+        X[start:start + n, 3 * k + 1] = parts[k].imag
+        X[start:start + n, 3 * k + 2] = 1.0
+        start += n
+    mom = X[:, :2] if K == 1 else np.column_stack((p.real, p.imag))
+    mom = np.column_stack((np.ones(len(p)), mom, mom * mom, mom[:, 0] * mom[:, 1]))  # 1, u, v, u², v², uv
+    group_base = 0 if K == 1 else np.repeat(2 * np.arange(K), counts)  # the left side of view k is group 2k
+    ids = np.arange(2 * K)[:, None]
+    c = [0j] * K                                               # the axis's point beside the cap (about the cap)
+    d = [s[1] for s in seeds]                                  # unit direction into the finger
+    keep = None
+    for it in range(2):
+        # (along the axis, minus the signed distance from it), in cap radii: (p − c)·conj(d) / r
+        A = []
+        for k in range(K):
+            f = d[k].conjugate() / seeds[k][0]
+            g = c[k] * f
+            A += [(f.real, f.imag), (-f.imag, f.real), (-g.real, -g.imag)]
+        w = X @ np.array(A)
+        along, across = w[:, 0], w[:, 1]
+        right = across < 0
+        use = (along >= from_radii) & (along <= to_radii) & (np.abs(np.abs(across) - 1.0) <= width_tol)
+        if keep is not None:
+            use &= keep
+        group = group_base + right                             # left side of view k: 2k, right side: 2k + 1
+        sel = (group == ids) & use                             # (2K, N)
+        S = (sel @ mom).tolist()
+        reach = (sel * along).max(axis=1).tolist()
+        means = []
+        for k in range(K):
+            sl, sr = S[2 * k], S[2 * k + 1]
+            nl, nr = int(sl[0]), int(sr[0])
+            side = views[k][0]
+            if min(nl, nr) < min_points:
+                return [f"{nl} and {nr} edge points on the finger's two sides in the {side} view "
+                        f"(need {min_points} each)"] * K
+            rc = min(reach[2 * k], reach[2 * k + 1])
+            if rc < 0.7 * to_radii:  # a cap's own outline stays within a radius of its centre
+                return [f"the finger's sides end {rc:.2f} radii behind the cap in the {side} view"] * K
+            ml, mr = complex(sl[1], sl[2]) / nl, complex(sr[1], sr[2]) / nr
+            # the two sides' second moments about their own means, pooled: Σ(qx² − qy²) + 2iΣqx·qy
+            cuu = sl[3] - sl[1] * ml.real + sr[3] - sr[1] * mr.real
+            cvv = sl[4] - sl[2] * ml.imag + sr[4] - sr[2] * mr.imag
+            cuv = sl[5] - sl[1] * ml.imag + sr[5] - sr[1] * mr.imag
+            ang = 0.5 * math.atan2(2.0 * cuv, cuu - cvv)          # the lines' common direction (total least squares)
+            dn = complex(math.cos(ang), math.sin(ang))
+            dk = dn if (dn * d[k].conjugate()).real > 0 else -dn
+            mid = 0.5 * (ml + mr)
+            c[k] = mid - ((mid - c[k]) * dk.conjugate()).real * dk  # the mid-line's point beside the cap centre
+            d[k] = dk
+            means.append((ml, mr, nl, nr, cuu, cvv, cuv, sl[2] + sr[2]))
+        if it == 0:  # distance from the own side's line (the sides as split before the refit): (p − m)·conj(d) imag
+            B, off = [], []
+            for k in range(K):
+                dk = d[k]
+                B += [-dk.imag, dk.real, 0.0]
+                off += [(means[k][0] * dk.conjugate()).imag, (means[k][1] * dk.conjugate()).imag]
+            keep = np.abs(X @ np.array(B) - np.take(off, group)) <= max_residual_px
+    out = []
+    cos_tilt = math.cos(math.radians(max_tilt_deg))
+    for k in range(K):
+        dk, (ml, mr, nl, nr, cuu, cvv, cuv, sv) = d[k], means[k]
+        if abs(dk.imag) < cos_tilt:
+            return [f"the finger lies within {90 - max_tilt_deg:.0f}° of the rows in the {views[k][0]} view"] * K
+        # Σ((q·conj d).imag)² of the pooled, centred points, from their second moments
+        res2 = dk.real * dk.real * cvv - 2.0 * dk.real * dk.imag * cuv + dk.imag * dk.imag * cuu
+        cap = seeds[k][2]
+        ck = c[k] + cap
+        out.append(AxisLine(np.array([ck.real, ck.imag]), dk.real / dk.imag, (nl, nr),
+                            math.sqrt(max(res2, 0.0) / (nl + nr)), sv / (nl + nr) + cap.imag,
+                            np.array([cap.real, cap.imag])))
+    return out
+
+
+def _side_points(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, to_radii: float, width_tol: float,
+                 min_points: int):
+    """The edge crossings around one view's finger behind the cap, rectified: ``(r, d, cap, p)`` with
+    the cap radius ``r``, the detector's axis direction ``d`` and cap centre ``cap`` in the rectified
+    view (complex) and the crossings ``p`` about ``cap`` (complex); or a reason why there are too few."""
     r = float(tip.cap_radius_px if tip.cap_radius_px > 0 else tip.radius_px)
-    u, v = float(tip.uv[0]), float(tip.uv[1])
-    d0x, d0y = float(tip.direction[0]), float(tip.direction[1])
+    u, v = tip.uv.tolist() if isinstance(tip.uv, np.ndarray) else (float(tip.uv[0]), float(tip.uv[1]))
+    d0x, d0y = tip.direction.tolist() if isinstance(tip.direction, np.ndarray) else tip.direction
     # the crossings of the mask around the finger's first to_radii + 1 radii behind the centre
     cx, cy = u - origin[0], v - origin[1]
     ex, ey = cx + (to_radii + 1.0) * r * d0x, cy + (to_radii + 1.0) * r * d0y
@@ -78,72 +185,40 @@ def axis_line(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, *, from_
     x1, y1 = min(int(max(cx, ex) + m) + 2, mw), min(int(max(cy, ey) + m) + 2, mh)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return f"the finger behind the cap is outside the {side} view's mask"
-    # points as complex numbers u + iv: (z − c)·conj(d) is (along the axis) − i(signed distance from it)
-    z = _inner_crossings(mask[y0:y1, x0:x1])
-    # a first, loose selection about the detector's axis (its direction is coarse)
-    w = (z - complex(cx - x0, cy - y0)) * complex(d0x, -d0y)
-    off = np.abs(w.imag)
-    sel = (w.real >= -0.5 * r) & (w.real <= (to_radii + 0.5) * r) & (off >= 0.4 * r) & (off <= 1.6 * r)
-    n = int(np.count_nonzero(sel))
-    if n < 2 * min_points:
-        return f"{n} edge points behind the cap in the {side} view"
-    # the cap centre, a point on the detector's axis and the crossings, rectified in one call
-    raw = np.empty(n + 2, complex)
-    raw[0] = complex(u, v)
-    raw[1] = complex(u + 2.0 * r * d0x, v + 2.0 * r * d0y)
-    raw[2:] = z[sel] + complex(x0 + origin[0], y0 + origin[1])
-    rect = rig.rectify_points(raw.view(np.float64).reshape(-1, 2), side)
-    cap = rect[0]
-    p = rect[2:].view(complex).ravel()
-    c = complex(*rect[0])
-    d = complex(*rect[1]) - c
+    # the cap centre, a point on the detector's axis and the crossings, rectified in one call (all
+    # the crop's crossings: the fit's own band about the rectified axis picks the sides' points, and
+    # the crop spans that band about the detector's axis with a margin of 2 px)
+    z = np.concatenate(((u + 1j * v, u + 2.0 * r * d0x + 1j * (v + 2.0 * r * d0y)),
+                        _inner_crossings(mask[y0:y1, x0:x1]) + complex(x0 + origin[0], y0 + origin[1])))
+    if len(z) < 2 + 2 * min_points:
+        return f"{len(z) - 2} edge points behind the cap in the {side} view"
+    rect = rig.rectify_points_fast(z.view(np.float64).reshape(-1, 2), side).view(complex).ravel()
+    cap = complex(rect[0])
+    d = rect[1] - cap
     d /= abs(d) + 1e-12
-    keep = None
-    lo, hi, tol = from_radii * r, to_radii * r, width_tol * r
-    for it in range(2):
-        w = (p - c) * d.conjugate()
-        along, across = w.real, w.imag                        # across: minus the signed distance from the axis
-        right = across < 0
-        use = (along >= lo) & (along <= hi) & (np.abs(np.abs(across) - r) <= tol)
-        if keep is not None:
-            use &= keep
-        ur = use & right
-        ul = use ^ ur
-        nl, nr = int(np.count_nonzero(ul)), int(np.count_nonzero(ur))
-        if min(nl, nr) < min_points:
-            return f"{nl} and {nr} edge points on the finger's two sides in the {side} view (need {min_points} each)"
-        reach = min(float(along[ul].max()), float(along[ur].max()))
-        if reach < 0.7 * hi:  # a cap's own outline stays within a radius of its centre
-            return f"the finger's sides end {reach / r:.2f} radii behind the cap in the {side} view"
-        ml, mr = complex(p[ul].sum()) / nl, complex(p[ur].sum()) / nr
-        q = p - np.where(right, mr, ml)                       # each side about its own mean
-        qu = q[use]
-        s2 = complex((qu * qu).sum())                         # Σ(qx² − qy²) + 2iΣqx·qy
-        ang = 0.5 * math.atan2(s2.imag, s2.real)              # the lines' common direction (total least squares)
-        dn = complex(math.cos(ang), math.sin(ang))
-        d = dn if (dn * d.conjugate()).real > 0 else -dn
-        mid = 0.5 * (ml + mr)
-        c = mid - ((mid - c) * d.conjugate()).real * d        # the mid-line's point beside the cap centre
-        if it == 0:
-            keep = np.abs((q * d.conjugate()).imag) <= max_residual_px  # distance from the own side's line
-    if abs(d.imag) < math.cos(math.radians(max_tilt_deg)):
-        return f"the finger lies within {90 - max_tilt_deg:.0f}° of the rows in the {side} view"
-    res = (qu * d.conjugate()).imag
-    rms = math.sqrt(float(res @ res) / (nl + nr))
-    return AxisLine(np.array([c.real, c.imag]), d.real / d.imag, (nl, nr), rms, float(p[use].imag.mean()), cap)
+    return r, complex(d), cap, rect[2:] - cap
 
 
 def _inner_crossings(crop: np.ndarray) -> np.ndarray:
     """The midpoints (complex, column + i·row) between horizontally/vertically adjacent pixels of ``crop``
     of which one is skin and one not, leaving out those on the crop's border rows and columns (the
-    crop's, not the finger's): the edge crossings inside the crop."""
+    crop's, not the finger's): the edge crossings inside the crop, horizontal ones first, each kind
+    in row-major order."""
     b = crop > 0
-    hy, hx = np.nonzero(b[1:-1, 1:] != b[1:-1, :-1])
-    vy, vx = np.nonzero(b[1:, 1:-1] != b[:-1, 1:-1])
-    z = np.empty(len(hx) + len(vx), complex)
-    z.real[:len(hx)], z.imag[:len(hx)] = hx + 0.5, hy + 1.0
-    z.real[len(hx):], z.imag[len(hx):] = vx + 1.0, vy + 0.5
-    return z
+    h, w = b.shape
+    gh, gv = _crossing_grids(w, 1 << max(h - 1, 31).bit_length())
+    return np.concatenate((gh[np.flatnonzero(b[1:-1, 1:] != b[1:-1, :-1])],
+                           gv[np.flatnonzero(b[1:, 1:-1] != b[:-1, 1:-1])]))
+
+
+@lru_cache(maxsize=512)
+def _crossing_grids(w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """Where the inner edge crossings between horizontal, and between vertical, neighbours of a crop
+    ``w`` pixels wide can lie, in row-major order of their flags, for crops up to ``h`` rows (a
+    crop of fewer rows takes the start): the coordinates without the arithmetic of each call."""
+    hy, hx = np.mgrid[1:h - 1, 0:w - 1]
+    vy, vx = np.mgrid[0:h - 1, 1:w - 1]
+    return (hx + 0.5 + 1j * hy).ravel(), (vx + 1j * (vy + 0.5)).ravel()
 
 
 def axis_disparity(line_l: AxisLine, line_r: AxisLine, v_ref: float) -> float:

@@ -224,7 +224,8 @@ class VisionPipeline:
         if sp.ok and self.config.filtered_output and all(self.trackers[s].kf.misses == 0 for s in ("left", "right")):
             # report the Kalman posteriors of both views (less pixel noise), triangulated the same way
             found = {s: self.trackers[s].kf.position.copy() for s in ("left", "right")}
-            spf = triangulate_tip(self.rig, found["left"], found["right"], self.config.stereo)
+            spf = triangulate_rectified_tip(self.rig, *(self.rig.rectify_points_fast(found[s].reshape(1, 2), s)[0]
+                                                       for s in ("left", "right")), self.config.stereo)
             if spf.ok and self.config.disparity_q > 0:
                 spf = self._filter_disparity(spf, sp.disparity_px, t)
             sp = spf if spf.ok else sp
@@ -287,7 +288,8 @@ class VisionPipeline:
         ref = refine_tip_pair(self.rig, images[0], images[1], tl, tr, self.config.refine, masks=self._masks)
         out = {"left": tl.uv, "right": tr.uv}, sp
         if ref.ok:
-            spr = triangulate_tip(self.rig, ref.uv_left, ref.uv_right, self.config.stereo)
+            spr = (triangulate_tip(self.rig, ref.uv_left, ref.uv_right, self.config.stereo) if ref.rect_left is None
+                   else triangulate_rectified_tip(self.rig, ref.rect_left, ref.rect_right, self.config.stereo))
             if spr.ok:
                 out = {"left": ref.uv_left, "right": ref.uv_right}, spr
         self._refine_ms += (time.perf_counter() - ts) * 1e3
@@ -307,7 +309,7 @@ class VisionPipeline:
         L, R = cands["left"], cands["right"]
         best, best_cost = None, np.inf
         rejected = []  # (rank sum, reason)
-        rect = {s: self.rig.rectify_points(np.array([tp.uv for tp in cands[s]], dtype=np.float64), s)
+        rect = {s: self.rig.rectify_points_fast(np.array([tp.uv for tp in cands[s]], dtype=np.float64), s)
                 for s in ("left", "right") if cands[s]}  # each candidate rectified once
         if L and R and len(L) * len(R) > 1:
             # pairs off each other's epipolar line by more than the widest check of _match (the

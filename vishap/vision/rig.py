@@ -327,13 +327,17 @@ class StereoRig:
     # ------------------------------------------------------------------ rectification
     def rectify_points(self, uv, side: str = "left") -> np.ndarray:
         """Raw pixels of one camera to pixels of its rectified image (N, 2)."""
-        uv = as_points(uv, f"uv_{side}", dim=2)
+        return self.rectify_points_fast(as_points(uv, f"uv_{side}", dim=2), side)
+
+    def rectify_points_fast(self, uv: np.ndarray, side: str) -> np.ndarray:
+        """:meth:`rectify_points` of an (N, 2) float64 array already checked finite (the pipeline's
+        own pixels, a few calls per stereo pair): the same floats without the checks."""
         K, d, Rr, P = (
             (self.K_left, self.dist_left, self.R1, self.P1)
             if side == "left"
             else (self.K_right, self.dist_right, self.R2, self.P2)
         )
-        if not np.any(d):  # no lens distortion: the same floats without 50 identity iterations per point
+        if not d.any():  # no lens distortion: the same floats without 50 identity iterations per point
             return cv2.undistortPoints(uv.reshape(-1, 1, 2), K, None, None, Rr, P).reshape(-1, 2)
         crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-14)
         return cv2.undistortPoints(uv.reshape(-1, 1, 2), K, d, None, Rr, P, crit).reshape(-1, 2)

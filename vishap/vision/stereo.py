@@ -59,6 +59,9 @@ def triangulate_tip(rig: StereoRig, uv_left, uv_right, config: StereoConfig = St
     return triangulate_rectified_tip(rig, rl, rr, config)
 
 
+_J_S = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.5, 0.0, 0.5], [1.0, 0.0, -1.0, 0.0]])  # ds/d(ul, vl, ur, vr): s = (u, v, d)
+
+
 def triangulate_rectified_tip(rig: StereoRig, rl, rr, config: StereoConfig = StereoConfig()) -> StereoPoint:
     """As :func:`triangulate_tip`, for pixels already in the rectified images."""
     rl = np.asarray(rl, dtype=np.float64)
@@ -76,10 +79,8 @@ def triangulate_rectified_tip(rig: StereoRig, rl, rr, config: StereoConfig = Ste
     s = np.array([rl[0], v, disp, 1.0])
     hom = rig.Q @ s
     p_rect = hom[:3] / hom[3]
-    # first-order propagation: ds/d(ul, vl, ur, vr)
-    J_s = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.5, 0.0, 0.5], [1.0, 0.0, -1.0, 0.0]])
     J_p = (rig.Q[:3, :3] - np.outer(p_rect, rig.Q[3, :3])) / hom[3]  # dp/d(u, v, d)
-    J = J_p @ J_s
+    J = J_p @ _J_S
     cov_rect = (config.sigma_px ** 2) * (J @ J.T)
     R1 = rig.R1
     p_cam = R1.T @ p_rect
@@ -197,6 +198,8 @@ class RefinedPair:
     radius_px: float = 0.0                 # rectified radius of the circle pair ("edges")
     points: tuple[int, int] = (0, 0)       # edge points used per view
     reason: str = ""
+    rect_left: np.ndarray | None = None    # the same pixels in the rectified images, where the method has them
+    rect_right: np.ndarray | None = None
 
 
 def _unrectify_points(rig: StereoRig, pts: np.ndarray, side: str) -> np.ndarray:
@@ -352,30 +355,42 @@ def _refine_by_axis(rig: StereoRig, masks: dict | None, tip_left, tip_right, con
     """The pair's disparity from the finger's side edges (:mod:`vishap.vision.axis_disparity`): each
     view's axis line at the cap centres' mean rectified row; the left point is the axis there."""
     from vishap._core.errors import VisionError
-    from vishap.vision.axis_disparity import axis_disparity, axis_line
+    from vishap.vision.axis_disparity import axis_disparity, axis_lines
 
     if masks is None:
         raise VisionError("refine method 'axis' needs the skin masks of both views")
-    lines = {}
-    for side, tip in (("left", tip_left), ("right", tip_right)):
-        mask, origin = masks[side]
-        lines[side] = axis_line(rig, side, mask, origin, tip, from_radii=config.axis_from_radii,
-                                to_radii=config.axis_to_radii, max_tilt_deg=config.axis_max_tilt_deg,
-                                width_tol=config.axis_width_tol, max_residual_px=config.axis_max_residual_px,
-                                min_points=config.axis_min_points)
-        if isinstance(lines[side], str):
-            return RefinedPair(False, reason=lines[side])
-    cl, cr = lines["left"].cap, lines["right"].cap
-    v = 0.5 * (cl[1] + cr[1])
-    cap = cl[0] - cr[0]
-    axis = axis_disparity(lines["left"], lines["right"], v if config.axis_at_cap else
-                          0.5 * (lines["left"].v_mean + lines["right"].v_mean))
+    lines = axis_lines(rig, [("left", *masks["left"], tip_left), ("right", *masks["right"], tip_right)],
+                       from_radii=config.axis_from_radii, to_radii=config.axis_to_radii,
+                       max_tilt_deg=config.axis_max_tilt_deg, width_tol=config.axis_width_tol,
+                       max_residual_px=config.axis_max_residual_px, min_points=config.axis_min_points)
+    if isinstance(lines[0], str):
+        return RefinedPair(False, reason=lines[0])
+    ll, lr = lines
+    cl, cr = ll.cap, lr.cap
+    v = 0.5 * float(cl[1] + cr[1])
+    cap = float(cl[0] - cr[0])
+    axis = axis_disparity(ll, lr, v if config.axis_at_cap else 0.5 * (ll.v_mean + lr.v_mean))
     if not abs(axis - cap) <= config.max_shift_px:
         return RefinedPair(False, reason=f"axis disparity {axis - cap:+.2f} px from the cap fits'")
     disp = config.axis_weight * axis + (1.0 - config.axis_weight) * cap
-    return RefinedPair(True, _unrectify_points(rig, (cl[0], v), "left")[0],
-                       _unrectify_points(rig, (cl[0] - disp, v), "right")[0], 0.0,
-                       (sum(lines["left"].points), sum(lines["right"].points)))
+    ul, ur = float(cl[0]), float(cl[0]) - disp
+    return RefinedPair(True, _unrectify_point(rig, ul, v, "left"), _unrectify_point(rig, ur, v, "right"), 0.0,
+                       (sum(ll.points), sum(lr.points)), rect_left=np.array([ul, v]), rect_right=np.array([ur, v]))
+
+
+def _unrectify_point(rig: StereoRig, u: float, v: float, side: str) -> np.ndarray:
+    """One rectified pixel back to raw pixels (2,): :func:`_unrectify_points`' arithmetic in plain floats
+    for a view without distortion (two per refined pair: the arrays' overhead was most of their cost)."""
+    K, d, Rr, P = ((rig.K_left, rig.dist_left, rig.R1, rig.P1) if side == "left"
+                   else (rig.K_right, rig.dist_right, rig.R2, rig.P2))
+    if d.any() or K[0, 1] != 0.0:
+        return _unrectify_points(rig, (u, v), side)[0]
+    (p00, _, p02, _), (_, p11, p12, _), _ = P.tolist()
+    (k00, _, k02), (_, k11, k12), _ = K.tolist()
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = Rr.tolist()
+    x, y = (u - p02) / p00, (v - p12) / p11
+    iz = 1.0 / (x * r02 + y * r12 + r22)
+    return np.array([(x * r00 + y * r10 + r20) * iz * k00 + k02, (x * r01 + y * r11 + r21) * iz * k11 + k12])
 
 
 def _cap_points(edge: np.ndarray, centre, direction, config: RefineConfig) -> np.ndarray | None:
