@@ -263,11 +263,12 @@ def _near_world(**kw):
 
 
 def test_near_the_finger_the_landing_point_moves_only_when_the_landing_would_leave_the_face():
-    """Within ``lock_m`` of the surface the waiting point ignores moves under the 1 mm dead-band; once
-    frozen (``freeze_s`` before the touch: a finger without a velocity estimate is taken to close at
-    20 mm/s, so 1.5 mm over the surface is 75 ms from it) it moves only when the landing would leave
-    half the finger's room on the 40 mm plate (10 mm from its centre keeps the finger 10 mm inside the
-    edge): not for 3 mm, for 7 mm. 3 mm over the surface (150 ms) it is not frozen yet."""
+    """Within ``lock_m`` of the surface the waiting point ignores moves under the 1 mm dead-band, the
+    sample that freezes it included; once frozen (``freeze_s`` before the touch: a finger without a
+    velocity estimate is taken to close at 20 mm/s, so 1.5 mm over the surface is 75 ms from it) it
+    moves only when the landing would leave half the finger's room on the 40 mm plate (10 mm from its
+    centre keeps the finger 10 mm inside the edge): not for 3 mm, for 7 mm. 3 mm over the surface
+    (150 ms) it is not frozen yet."""
     w = _near_world()
     assert w.replan_m == pytest.approx(0.005) and w.deadband_m == pytest.approx(0.001)
     a = w.update(0.1, [0.20, 0.0, -0.150 + 0.008]).X_d
@@ -277,10 +278,20 @@ def test_near_the_finger_the_landing_point_moves_only_when_the_landing_would_lea
     assert np.allclose(c, [0.203, 0.0, -0.15])
     c2 = w.update(0.35, [0.2045, 0.0, -0.150 + 0.003]).X_d  # 3 mm over it, 150 ms away: not frozen by height
     assert np.allclose(c2, [0.2045, 0.0, -0.15])
-    d = w.update(0.4, [0.206, 0.0, -0.150 + 0.0015]).X_d  # frozen: 1.5 mm is within the room
+    d = w.update(0.4, [0.2053, 0.0, -0.150 + 0.0015]).X_d  # frozen, on the plan: 0.8 mm is within the dead-band
     assert np.allclose(d, c2)
-    e = w.update(0.5, [0.210, 0.0, -0.150 + 0.001]).X_d  # 7 mm: the finger would land too near the edge
-    assert np.allclose(e, [0.210, 0.0, -0.15])
+    d2 = w.update(0.45, [0.2075, 0.0, -0.150 + 0.0012]).X_d  # frozen: 3 mm is within the room
+    assert np.allclose(d2, c2)
+    e = w.update(0.5, [0.2115, 0.0, -0.150 + 0.001]).X_d  # 7 mm: the finger would land too near the edge
+    assert np.allclose(e, [0.2115, 0.0, -0.15])
+    # the sample that freezes the point is the newest: a move beyond the dead-band is taken then, not
+    # the plan of an older sample (the wall demo froze 2 mm off on one sample's jump, the next sample
+    # already back)
+    w = _near_world()
+    w.update(0.1, [0.20, 0.0, -0.150 + 0.006])
+    w.update(0.2, [0.2025, 0.0, -0.150 + 0.004])  # one sample's jump moves the plan
+    f = w.update(0.3, [0.2003, 0.0, -0.150 + 0.0015]).X_d  # frozen here, on this sample (2.2 mm back)
+    assert np.allclose(f, [0.2003, 0.0, -0.15])
     # a face too narrow to land off its centre (an 18 mm keycap) has no room: no re-plan, no run-up
     narrow = load_scene("panel")
     narrow.passive_object = narrow.passive_object.model_copy(update={"size_m": (0.018, 0.018, 0.003)})
@@ -288,6 +299,64 @@ def test_near_the_finger_the_landing_point_moves_only_when_the_landing_would_lea
     # every scene's passive face leaves the finger room to land 10 mm inside its edge (issue 16)
     for name in ("wall", "button", "fabric", "panel"):
         assert load_scene(name).passive_object.half_size_m >= 0.010 + 0.0025, name
+
+
+def test_a_frozen_landing_point_stays_latched_while_the_finger_is_near():
+    """Once frozen, the landing point is latched while the finger stays within ``lock_m``: a later
+    sample that puts the touch further away in time (a finger slowing, 4 mm over the surface: 200 ms at
+    the 20 mm/s floor) does not release it to the dead-banded plan (the device was sent sideways under
+    the landing finger, 30–60 ms before the touch); a finger rising above ``lock_m`` does."""
+    w = _near_world()
+    w.update(0.1, [0.20, 0.0, -0.150 + 0.006])
+    held = w.update(0.2, [0.2002, 0.0, -0.150 + 0.0015]).X_d  # frozen
+    assert np.allclose(held, [0.20, 0.0, -0.15])  # within the dead-band of the plan
+    later = w.update(0.25, [0.2035, 0.0, -0.150 + 0.004]).X_d  # 3.3 mm aside (within the room), 200 ms away
+    assert np.allclose(later, held)
+    w.update(0.3, [0.2035, 0.0, -0.150 + 0.030])  # the finger withdrew: released
+    again = w.update(0.35, [0.2035, 0.0, -0.150 + 0.008]).X_d
+    assert np.allclose(again, [0.2035, 0.0, -0.15])
+
+
+def test_a_touch_only_seen_keeps_the_latched_landing_point_until_the_device_feels_it():
+    """A measured fingertip at the surface with the device not yet pushed is a touch seen, not felt:
+    while the finger lands within the re-plan room of the latched point, the face stays where it
+    waits (a noisy sample reads the finger at the surface up to 150 ms early, and following its
+    projection from then on moved the face sideways under the landing finger). Once the device is
+    pushed under the surface the target follows the finger's projection (sliding); a finger seen landing
+    beyond the room is followed at once."""
+    w = _near_world()
+    dev = [0.20, 0.0, -0.15]
+    w.update(0.1, [0.20, 0.0, -0.150 + 0.006], dev)
+    held = w.update(0.2, [0.2004, 0.0, -0.150 + 0.0015], dev).X_d  # frozen
+    seen = w.update(0.25, [0.2030, 0.0, -0.150 - 0.0005], dev)  # seen at the surface, 2.6 mm aside
+    assert seen.in_contact and np.allclose(seen.X_d, held)
+    felt = w.update(0.3, [0.2030, 0.0, -0.150 - 0.0005], [0.20, 0.0, -0.1510])  # the device pushed 1 mm under
+    assert np.allclose(felt.X_d, [0.2030, 0.0, -0.15])
+    w = _near_world()
+    w.update(0.1, [0.20, 0.0, -0.150 + 0.006], dev)
+    w.update(0.2, [0.2004, 0.0, -0.150 + 0.0015], dev)
+    far = w.update(0.25, [0.2080, 0.0, -0.150 - 0.0005], dev)  # seen landing 7.6 mm aside: beyond the room
+    assert np.allclose(far.X_d, [0.2080, 0.0, -0.15])
+
+
+def test_a_landing_beyond_the_horizon_leaves_the_device_under_the_finger():
+    """A finger closing on the surface too slowly to land within ``horizon_s`` has no landing point
+    yet: the target is its projection, not its motion followed for the whole horizon (at the start of a
+    fast descent the sideways velocity is mostly noise; taken as a landing point it sent the wall
+    demo's device 15 mm off at 0.3 m/s). Within the horizon the meeting point leads the finger."""
+    scene = load_scene("wall")
+    w = World(scene, predictor="cv", contact_model="ray")
+    for k in range(3):  # 100 mm over the wall closing at 0.15 m/s (0.67 s away), 60 mm/s sideways
+        t = k / 30
+        it = w.update(t, [0.20 + 0.06 * t, 0.0, -0.05 - 0.15 * t])
+    assert it.time_to_contact_s is None
+    assert np.allclose(it.X_d, [0.20 + 0.06 * 2 / 30, 0.0, -0.15])
+    for k in range(3, 20):  # within the horizon: ahead of the finger along its motion
+        t = k / 30
+        it = w.update(t, [0.20 + 0.06 * t, 0.0, -0.05 - 0.15 * t])
+        if it.time_to_contact_s is not None:
+            break
+    assert it.time_to_contact_s is not None and it.X_d[0] > 0.20 + 0.06 * t + 0.005
 
 
 def test_the_run_up_moves_the_target_with_the_finger_sideways_near_the_touch():
