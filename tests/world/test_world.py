@@ -339,6 +339,41 @@ def test_a_touch_only_seen_keeps_the_latched_landing_point_until_the_device_feel
     assert np.allclose(far.X_d, [0.2080, 0.0, -0.15])
 
 
+def test_no_run_up_from_a_reach_fit_that_ended_before_the_newest_sample():
+    """A fitted reach whose touch lies before the newest sample, while that sample is still above the
+    surface, describes another movement (a finger at rest, then a fast descent, fitted as one reach):
+    its velocity is no run-up and the face waits still on the landing point. A fit timed ahead runs up."""
+    scene = load_scene("wall")
+
+    class Fit:  # a reach fit that always says the same, as the real one does over such a window
+        t_touch, meas_std = None, 0.0036
+
+        def __init__(self, t_touch):
+            self.when = t_touch
+
+        def observe(self, t, p):
+            pass
+
+        def reset(self):
+            pass
+
+        def contact(self, centre, R):
+            self.t_touch = self.when
+            return np.array([0.22, -0.02, -0.15]), 1e-6
+
+        def tangential_velocity_at(self, t):
+            return np.array([0.025, -0.004, 0.0])
+
+    offsets = {}
+    for label, when in (("ended", 0.1), ("ahead", 0.45)):
+        w = World(scene, predictor="none", contact_model="ray", latency_s=0.03)
+        w.reach = Fit(when)
+        w.update(0.0, [0.22, -0.02, -0.150 + 0.030])
+        it = w.update(0.30, [0.22, -0.02, -0.150 + 0.0012])  # near and frozen: the run-up starts
+        offsets[label] = float(np.linalg.norm(it.X_d[:2] - [0.22, -0.02]))
+    assert offsets["ended"] == 0.0 and offsets["ahead"] > 0.0005
+
+
 def test_a_landing_beyond_the_horizon_leaves_the_device_under_the_finger():
     """A finger closing on the surface too slowly to land within ``horizon_s`` has no landing point
     yet: the target is its projection, not its motion followed for the whole horizon (at the start of a
