@@ -167,6 +167,7 @@ class World:
         self._t_last: float | None = None
         self._interval = 0.0  # spacing of the finger samples (s)
         self.p_meas: np.ndarray | None = None  # the latest measured fingertip
+        self._seen = 0  # how many successive measured samples were at the subject's surface
         self.meeting.reset()
         self.path.reset()
         self.reach.reset()
@@ -195,6 +196,8 @@ class World:
         distances = {o.name: o.signed_distance(p) for o in self.scene.objects}
         subj = self._choose(distances, self._heading_to(p, v), float(np.linalg.norm(v)) > self.moving_m_s)
         h = subj.height(p)
+        if p_robot_finger is not None:  # successive measured samples at the surface (a touch seen)
+            self._seen = self._seen + 1 if subj.height(p_robot_finger) <= self.contact_margin_m else 0
         depth = -h
         in_contact = depth >= -self.contact_margin_m and subj.inside_extent(p, self.contact_margin_m)
         imminent = distances[subj.name] < self.imminent_m
@@ -214,12 +217,24 @@ class World:
         if reach is not None and self.contact_model == "reach":
             c = subj.project(reach[0])
         elif tau is None and not near:
-            # not landing within the horizon: no meeting point yet, and the device waits under the finger.
-            # The finger's motion followed for the whole horizon is no landing point: at the start of a fast
-            # descent its sideways velocity is noise (σ 86 mm/s on the demos' 3.6 mm samples), and taken as
-            # one it put the target 15 mm off and sent the device there at 0.3 m/s 150 ms before the touch
-            self.meeting.reset()
-            c = subj.project(p)
+            # not landing within the horizon. Closing, the motion followed for the horizon is a prediction
+            # that far ahead and is fused as one, weighed against the finger's projection the meeting point
+            # started from: taken alone, a noisy sideways velocity at the start of a fast descent (σ 86 mm/s
+            # on the demos' 3.6 mm samples) put the landing point 15 mm off at once and sent the device
+            # there at 0.3 m/s. Not closing, the finger lands under itself for now, within a third of its
+            # height (the reaches this system serves land up to their height aside, most within a third):
+            # the meeting point restarts there, so that the first prediction within the horizon is weighed
+            # against it instead of being taken whole.
+            cov = hasattr(self.predictor, "cov_at")
+            if cov:
+                P = self.predictor.cov_at(t + self.latency_s)
+                var_p, var_v = np.trace(P[:3, :3]) / 3, np.trace(P[3:, 3:]) / 3
+            if cov and self.meeting.c is not None and -float(subj.normal @ v) > _MIN_CLOSING_M_S:
+                c = subj.project(self.meeting.update(c, self.horizon_s, var_p, var_v))
+            else:
+                self.meeting.reset()
+                if cov:
+                    self.meeting.update(c, 0.0, var_p + (max(h, 0.0) / 3.0) ** 2, 0.0)
         # (a finger slowing to a stop near the surface lands under itself: its projections keep being
         # fused, so one noisy sample does not become the landing point)
         else:
@@ -330,15 +345,16 @@ class World:
         """The touch seen, not only predicted: the device is pushed under the surface by more than
         ``engage_m`` (the touch felt), or the latest *measured* fingertip is at the surface. Until then
         the meeting point is held — the straight-line prediction of the present overshoots a
-        decelerating finger. A touch only seen does not release a latched landing point that the finger
-        (predicted at ``p``) lands on within the re-plan room: one noisy sample at the surface comes up
-        to 150 ms before the touch, and following the finger's noisy projection from then on moved the
-        waiting face sideways under the landing finger."""
+        decelerating finger. One sample seen at the surface does not release a latched landing point that
+        the finger (predicted at ``p``) lands on within the re-plan room: a noisy sample reads the finger
+        at the surface up to 150 ms before the touch, and following its projection from then on moved
+        the waiting face sideways under the landing finger. A second one in a row does (a finger resting
+        on the surface lightly, without pushing the device, is then centred as before)."""
         if p_robot_device is not None and subj.height(np.asarray(p_robot_device, dtype=float)) < -self.engage_m:
             return True
-        if self.p_meas is None or subj.height(self.p_meas) > self.contact_margin_m:
+        if self._seen == 0:
             return False
-        return self.held is None or _tangential(subj.project(p) - self.held, subj.normal) > self.replan_m
+        return self.held is None or self._seen >= 2 or _tangential(subj.project(p) - self.held, subj.normal) > self.replan_m
 
     def _target(self, subj: SceneObject, p, c, h: float, in_contact: bool, near: bool = False,
                 frozen: bool | None = None) -> np.ndarray:
