@@ -384,25 +384,6 @@ def test_no_run_up_from_a_reach_fit_that_ended_before_the_newest_sample():
     assert offsets["ended"] == 0.0 and offsets["ahead"] > 0.0005
 
 
-def test_a_landing_beyond_the_horizon_is_weighed_against_the_finger_s_projection():
-    """A finger at rest 50 mm over the wall starts a fast descent; its first samples step 1–3 mm
-    sideways (the demos' stereo noise is 3.6 mm). While the finger would land beyond ``horizon_s``, its
-    motion followed for the horizon is a prediction that far ahead, fused against the projection the
-    meeting point started from: the target stays within 2 mm of the finger's projection (taken whole,
-    the noisy sideways velocity put it 13 mm off). Within the horizon it leads the finger."""
-    from vishap.world.predictor import KalmanPredictor
-
-    w = World(load_scene("wall"), predictor=KalmanPredictor(meas_std_m=0.0036), latency_s=0.026, contact_model="both")
-    for k in range(12):
-        w.update(k / 30, [0.22, -0.02, -0.10])
-    beyond, within = [], []
-    for k, (dx, z) in enumerate([(0.001, -0.102), (0.003, -0.107), (0.004, -0.118), (0.004, -0.130)]):
-        it = w.update((12 + k) / 30, [0.22 + dx, -0.02, z])
-        (beyond if it.time_to_contact_s is None else within).append(it.X_d[0] - it.finger[0])
-    assert len(beyond) == 2 and max(abs(d) for d in beyond) < 0.002
-    assert within and all(d > 0.0 for d in within)
-
-
 def test_the_run_up_moves_the_target_with_the_finger_sideways_near_the_touch():
     """Near the touch the target is offset from the landing point by the finger's fitted sideways
     velocity times the time from the touch to when the servo reaches the sample (its age, one sample

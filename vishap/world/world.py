@@ -88,13 +88,12 @@ class World:
     the waiting point ignores moves under ``deadband_m``;
     ``freeze_s`` before the touch (the later of the reach fit's time and the straight line's at the closing
     speed; never by the height of one noisy sample) it is frozen on the newest sample's landing point
-    (the dead-band applied) and stays latched while the finger is near — a touch only seen, not yet felt
-    by the device, does not release it either; it moves only when the landing would leave half the
-    finger's room on the passive face (``inside_m`` inside its edge). A finger not landing within
-    ``horizon_s`` has the device wait under it. Over the last ``runup_s`` the target runs up sideways at
-    the finger's fitted velocity so that the finger lands on a face moving with it, timed for when the
-    servo reaches the sample
-    (``latency_s`` + one sample interval + ``servo_lag_s``, the servo's own lag behind its target).
+    (the dead-band applied) and stays latched while the finger is near — one sample seeing the touch,
+    not yet felt by the device, does not release it either; it moves only when the landing would leave
+    half the finger's room on the passive face (``inside_m`` inside its edge). Over the last ``runup_s``
+    the target runs up sideways at the finger's fitted velocity so that the finger lands on a face
+    moving with it, timed for when the servo reaches the sample (``latency_s`` + one sample interval +
+    ``servo_lag_s``, the servo's own lag behind its target).
     """
 
     def __init__(
@@ -217,24 +216,7 @@ class World:
         if reach is not None and self.contact_model == "reach":
             c = subj.project(reach[0])
         elif tau is None and not near:
-            # not landing within the horizon. Closing, the motion followed for the horizon is a prediction
-            # that far ahead and is fused as one, weighed against the finger's projection the meeting point
-            # started from: taken alone, a noisy sideways velocity at the start of a fast descent (σ 86 mm/s
-            # on the demos' 3.6 mm samples) put the landing point 15 mm off at once and sent the device
-            # there at 0.3 m/s. Not closing, the finger lands under itself for now, within a third of its
-            # height (the reaches this system serves land up to their height aside, most within a third):
-            # the meeting point restarts there, so that the first prediction within the horizon is weighed
-            # against it instead of being taken whole.
-            cov = hasattr(self.predictor, "cov_at")
-            if cov:
-                P = self.predictor.cov_at(t + self.latency_s)
-                var_p, var_v = np.trace(P[:3, :3]) / 3, np.trace(P[3:, 3:]) / 3
-            if cov and self.meeting.c is not None and -float(subj.normal @ v) > _MIN_CLOSING_M_S:
-                c = subj.project(self.meeting.update(c, self.horizon_s, var_p, var_v))
-            else:
-                self.meeting.reset()
-                if cov:
-                    self.meeting.update(c, 0.0, var_p + (max(h, 0.0) / 3.0) ** 2, 0.0)
+            self.meeting.reset()  # not approaching: no meeting point yet
         # (a finger slowing to a stop near the surface lands under itself: its projections keep being
         # fused, so one noisy sample does not become the landing point)
         else:
