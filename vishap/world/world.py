@@ -216,7 +216,14 @@ class World:
         if reach is not None and self.contact_model == "reach":
             c = subj.project(reach[0])
         elif tau is None and not near:
-            self.meeting.reset()  # not approaching: no meeting point yet
+            # not landing within the horizon: no meeting point yet. It restarts from the finger's projection,
+            # a guess that the finger lands under itself within a third of its height, so that the first
+            # prediction within the horizon is weighed against it instead of being taken whole (the wall
+            # demo's straight-down approaches: one noisy sideways velocity put the landing point 4–7 mm off)
+            self.meeting.reset()
+            if hasattr(self.predictor, "cov_at"):
+                var_p = np.trace(self.predictor.cov_at(t + self.latency_s)[:3, :3]) / 3
+                self.meeting.update(subj.project(p), 0.0, var_p + (max(h, 0.0) / 3.0) ** 2, 0.0)
         # (a finger slowing to a stop near the surface lands under itself: its projections keep being
         # fused, so one noisy sample does not become the landing point)
         else:
