@@ -93,7 +93,9 @@ class World:
     half the finger's room on the passive face (``inside_m`` inside its edge). Over the last ``runup_s``
     the target runs up sideways at the finger's fitted velocity so that the finger lands on a face
     moving with it, timed for when the servo reaches the sample (``latency_s`` + one sample interval +
-    ``servo_lag_s``, the servo's own lag behind its target).
+    ``servo_lag_s``, the servo's own lag behind its target). Before the finger lands within ``horizon_s``
+    the meeting point restarts from its projection, so that the first landing point within the horizon
+    is weighed against it.
     """
 
     def __init__(
@@ -217,7 +219,8 @@ class World:
             c = subj.project(reach[0])
         elif tau is None and not near:
             # not landing within the horizon: no meeting point yet. It restarts from the finger's projection,
-            # a guess that the finger lands under itself within a third of its height, so that the first
+            # a guess that the finger lands under itself within a third of its height (the median
+            # sideways-to-height ratio of the approaches bench world draws: 0.34), so that the first
             # prediction within the horizon is weighed against it instead of being taken whole (the wall
             # demo's straight-down approaches: one noisy sideways velocity put the landing point 4–7 mm off)
             self.meeting.reset()
