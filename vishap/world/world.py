@@ -87,11 +87,15 @@ class World:
     The approach near the finger (issue 16's "ready at the touch"): within ``lock_m`` of the surface
     the waiting point ignores moves under ``deadband_m``;
     ``freeze_s`` before the touch (the later of the reach fit's time and the straight line's at the closing
-    speed; never by the height of one noisy sample) it is frozen and moves
-    only when the landing would leave half the finger's room on the passive face (``inside_m`` inside
-    its edge); over the last ``runup_s`` the target runs up sideways at the finger's fitted velocity so
-    that the finger lands on a face moving with it, timed for when the servo reaches the sample
-    (``latency_s`` + one sample interval + ``servo_lag_s``, the servo's own lag behind its target).
+    speed; never by the height of one noisy sample) it is frozen on the newest sample's landing point
+    (the dead-band applied) and stays latched while the finger is near — one sample seeing the touch,
+    not yet felt by the device, does not release it either; it moves only when the landing would leave
+    half the finger's room on the passive face (``inside_m`` inside its edge). Over the last ``runup_s``
+    the target runs up sideways at the finger's fitted velocity so that the finger lands on a face
+    moving with it, timed for when the servo reaches the sample (``latency_s`` + one sample interval +
+    ``servo_lag_s``, the servo's own lag behind its target). Before the finger lands within ``horizon_s``
+    the meeting point restarts from its projection, so that the first landing point within the horizon
+    is weighed against it.
     """
 
     def __init__(
@@ -164,6 +168,7 @@ class World:
         self._t_last: float | None = None
         self._interval = 0.0  # spacing of the finger samples (s)
         self.p_meas: np.ndarray | None = None  # the latest measured fingertip
+        self._seen = 0  # how many successive measured samples were at the subject's surface
         self.meeting.reset()
         self.path.reset()
         self.reach.reset()
@@ -192,6 +197,8 @@ class World:
         distances = {o.name: o.signed_distance(p) for o in self.scene.objects}
         subj = self._choose(distances, self._heading_to(p, v), float(np.linalg.norm(v)) > self.moving_m_s)
         h = subj.height(p)
+        if p_robot_finger is not None:  # successive measured samples at the surface (a touch seen)
+            self._seen = self._seen + 1 if subj.height(p_robot_finger) <= self.contact_margin_m else 0
         depth = -h
         in_contact = depth >= -self.contact_margin_m and subj.inside_extent(p, self.contact_margin_m)
         imminent = distances[subj.name] < self.imminent_m
@@ -211,7 +218,15 @@ class World:
         if reach is not None and self.contact_model == "reach":
             c = subj.project(reach[0])
         elif tau is None and not near:
-            self.meeting.reset()  # not approaching: no meeting point yet
+            # not landing within the horizon: no meeting point yet. It restarts from the finger's projection,
+            # a guess that the finger lands under itself within a third of its height (the median
+            # sideways-to-height ratio of the approaches bench world draws: 0.34), so that the first
+            # prediction within the horizon is weighed against it instead of being taken whole (the wall
+            # demo's straight-down approaches: one noisy sideways velocity put the landing point 4–7 mm off)
+            self.meeting.reset()
+            if hasattr(self.predictor, "cov_at"):
+                var_p = np.trace(self.predictor.cov_at(t + self.latency_s)[:3, :3]) / 3
+                self.meeting.update(subj.project(p), 0.0, var_p + (max(h, 0.0) / 3.0) ** 2, 0.0)
         # (a finger slowing to a stop near the surface lands under itself: its projections keep being
         # fused, so one noisy sample does not become the landing point)
         else:
@@ -223,7 +238,7 @@ class World:
             if reach is not None and self.contact_model == "all":
                 c = self.meeting.update(reach[0], 0.0, reach[1], 0.0)
             c = subj.project(c)
-        confirmed = in_contact and self._touch_confirmed(subj, p_robot_device)
+        confirmed = in_contact and self._touch_confirmed(subj, p, p_robot_device)
         # frozen by the time left to the touch, not by height (a 3–4 mm noisy sample can put the extrapolated
         # finger within hold_m while it is 8 mm and 300 ms away): the later of the fitted reach's touch and
         # the straight line's at the present closing speed (at least ``_MIN_CLOSING_M_S``). Both come early
@@ -233,7 +248,10 @@ class World:
         t_left = max(h, 0.0) / closing
         if reach is not None and self.reach.t_touch is not None:
             t_left = max(t_left, self.reach.t_touch - t - self.latency_s)
-        frozen = near and t_left < self.freeze_s
+        # once frozen, the landing point stays latched while the finger stays near (the finger is committed
+        # to its landing): a later, longer time left (a reach fit re-timed by a noisy sample, a finger
+        # slowing down) does not release it back to the latest prediction within the last 100 ms
+        frozen = near and (t_left < self.freeze_s or self.held is not None)
         X = self._target(subj, p, c, h, confirmed, near, frozen)
         if not confirmed and runup and near:
             X = X + self._runup(t, subj, reach)
@@ -304,20 +322,31 @@ class World:
             tt = self.reach.t_touch
             if reach is None or tt is None:
                 return np.zeros(3)
-            self._run = (tt, self.reach.tangential_velocity_at(tt))
+            # a fitted reach that ended before the newest sample, with the finger still seen above the
+            # surface, is not this reach (a finger at rest, then a fast move: one minimum-jerk reach
+            # fitted over both); its velocity is no run-up (the wall demo's straight-down approach got
+            # 25 mm/s sideways from it, a 1.5 mm jump of the waiting face 70 ms before the touch)
+            self._run = (tt, np.zeros(3) if tt < t else self.reach.tangential_velocity_at(tt))
         tt, v = self._run
         t_use = t + self.latency_s + self._interval + self.servo_lag_s
         du = v * float(np.clip(t_use - tt, -self.runup_s, self.runup_s))
         n = float(np.linalg.norm(du))
         return du * (self.replan_m / n) if n > self.replan_m else du
 
-    def _touch_confirmed(self, subj: SceneObject, p_robot_device) -> bool:
-        """The touch seen, not only predicted: the latest *measured* fingertip is at the surface or the
-        device is pushed under it by more than ``engage_m``. Until then the meeting point is held —
-        the straight-line prediction of the present overshoots a decelerating finger."""
-        if self.p_meas is not None and subj.height(self.p_meas) <= self.contact_margin_m:
+    def _touch_confirmed(self, subj: SceneObject, p, p_robot_device) -> bool:
+        """The touch seen, not only predicted: the device is pushed under the surface by more than
+        ``engage_m`` (the touch felt), or the latest *measured* fingertip is at the surface. Until then
+        the meeting point is held — the straight-line prediction of the present overshoots a
+        decelerating finger. One sample seen at the surface does not release a latched landing point that
+        the finger (predicted at ``p``) lands on within the re-plan room: a noisy sample reads the finger
+        at the surface up to 150 ms before the touch, and following its projection from then on moved
+        the waiting face sideways under the landing finger. A second one in a row does (a finger resting
+        on the surface lightly, without pushing the device, is then centred as before)."""
+        if p_robot_device is not None and subj.height(np.asarray(p_robot_device, dtype=float)) < -self.engage_m:
             return True
-        return p_robot_device is not None and subj.height(np.asarray(p_robot_device, dtype=float)) < -self.engage_m
+        if self._seen == 0:
+            return False
+        return self.held is None or self._seen >= 2 or _tangential(subj.project(p) - self.held, subj.normal) > self.replan_m
 
     def _target(self, subj: SceneObject, p, c, h: float, in_contact: bool, near: bool = False,
                 frozen: bool | None = None) -> np.ndarray:
@@ -335,8 +364,10 @@ class World:
         if frozen is None:
             frozen = self.hold_m > h > -self.contact_margin_m
         if frozen:  # hold the meeting point, do not chase noise (nor the extrapolated finger under the surface)
-            if self.held is None:
-                self.held = c if self.plan is None else self.plan
+            if self.held is None:  # the sample that freezes it is the newest: the dead-band applies to it too
+                if self.plan is None or _tangential(c - self.plan, subj.normal) > self.deadband_m:
+                    self.plan = c
+                self.held = self.plan
             elif self.replan_m > 0.0 and _tangential(c - self.held, subj.normal) > self.replan_m:
                 self.held, self._run = c, None  # re-planned only to keep the finger on the face
             return self.held.copy()
