@@ -66,8 +66,10 @@ def test_holds_position_before_any_target_and_callback_force():
     np.testing.assert_allclose(seen[0], p0)
     for i in range(600, 1600):
         servo.tick(i * 1e-3)
-    # a constant 0.5 N push against Kp moves it 0.5 / Kp up
-    assert plant.read().p_robot[2] - p0[2] == pytest.approx(0.5 / Gains().kp, rel=0.05)
+    # a constant 0.5 N push against Kp moves it 0.5 / Kp up, give or take what the Coulomb friction holds
+    # (0.03-0.06 N along an axis: test_coulomb_friction_at_the_tip_is_about_the_data_sheet_figure)
+    kp = Gains().kp
+    assert plant.read().p_robot[2] - p0[2] == pytest.approx(0.5 / kp, abs=0.06 / kp)
 
 
 from hypothesis import given, settings, strategies as st  # noqa: E402

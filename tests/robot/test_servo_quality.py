@@ -12,8 +12,10 @@ def test_band_rms_splits_a_signal_at_the_frequency():
     t = np.arange(2000) * 1e-3
     x = 0.3 * np.sin(2 * np.pi * 10 * t) + 0.1 * np.sin(2 * np.pi * 100 * t)
     assert band_rms(x, 1000.0) == pytest.approx(np.sqrt(0.3**2 + 0.1**2) / np.sqrt(2), rel=1e-6)
-    assert band_rms(x, 1000.0, 30.0) == pytest.approx(0.1 / np.sqrt(2), rel=1e-6)
-    assert band_rms(np.c_[x, x], 1000.0, 30.0) == pytest.approx(0.1, rel=1e-6)  # columns add in power
+    # rel 2e-3, not exact: band_rms mirrors the record, and the kink where the record meets its
+    # mirror image moves the band's share by 0.1 %
+    assert band_rms(x, 1000.0, 30.0) == pytest.approx(0.1 / np.sqrt(2), rel=2e-3)
+    assert band_rms(np.c_[x, x], 1000.0, 30.0) == pytest.approx(0.1, rel=2e-3)  # columns add in power
 
 
 def _log(tmp_path):
