@@ -34,7 +34,13 @@ def test_wall_meets_finger_first_and_is_a_linear_spring():
     pad, k_wall = FingerPad().k_normal_n_m, 800.0
     assert r2 > 0.99
     assert slope == pytest.approx(pad * k_wall / (pad + k_wall), rel=0.1)  # pad and wall in series
-    assert np.all(np.abs(r.press_force_n[r.press_depth_m < -0.001]) < 0.05)  # only the holding servo before the touch
+    before = r.press_depth_m < -0.001
+    assert before.sum() > 10
+    assert np.all(r.press_law_n[before] == 0.0)  # no force law before the touch
+    assert np.all(r.press_law_n[m] > 0.0)  # and the wall's law in the press
+    # only the holding servo before the touch: the arm rests where each joint's share of Kp·e is below
+    # its Coulomb friction (up to 65 µm off at Kp 800 N/m, docs/robot.md "Ripple"), still settling
+    assert np.all(np.abs(r.press_force_n[before]) < 0.1)
     assert r.slide_friction_ratio < 0.1  # a hard wall allows sliding
 
 

@@ -115,6 +115,7 @@ class ApproachResult:
     log: dict | None = None
     ready: bool = False  # the device was ready at the first touch (:func:`device_ready`)
     ready_checks: dict = field(default_factory=dict)  # each of its conditions (:func:`ready_checks`)
+    press_law_n: np.ndarray | None = None  # the force law's share of ``press_force_n`` (N)
 
 
 def make_device(scene: Scene, cfg=None, *, travel: bool = True):
@@ -185,6 +186,7 @@ def run_approach(
     subj = np.empty(n_ticks, dtype=object)
     v_dev = np.empty((n_ticks, 3))
     f_n = np.zeros(n_ticks)
+    f_law = np.zeros(n_ticks)
     f_t = np.zeros(n_ticks)
     d_f = np.zeros(n_ticks)
     touching = np.zeros(n_ticks, dtype=bool)
@@ -220,10 +222,12 @@ def run_approach(
         F_pad = pad.force_on_device(p_f, v_f, p_true, v_tip, s.normal, half)
         plant.apply_tip_force(F_pad)
         c0 = perf_counter()
-        step.tick(t, rec, state)
+        tick = step.tick(t, rec, state)
         cost += perf_counter() - c0
         F = ctrl.F_pd
         nrm = s.normal
+        if tick.F_law is not None:
+            f_law[k] = float(np.dot(tick.F_law, nrm))
         f_n[k] = F[0] * nrm[0] + F[1] * nrm[1] + F[2] * nrm[2]
         f_t[k] = math.sqrt(max(F[0] * F[0] + F[1] * F[1] + F[2] * F[2] - f_n[k] * f_n[k], 0.0))
         d_f[k] = -obj.height(p_f)
@@ -276,7 +280,7 @@ def run_approach(
     return ApproachResult(
         traj.object_name, obj.kind, traj.speed_m_s, t_contact, touched, in_place, lead, err,
         cost / max(n_ticks, 1) * 1e6, order, None if t_contact is None else subj[k_contact],
-        d_f[sel], f_n[sel], through, face_through, ratio, log, ready, checks,
+        d_f[sel], f_n[sel], through, face_through, ratio, log, ready, checks, f_law[:n_ticks][sel],
     )
 
 
