@@ -265,7 +265,7 @@ def test_bench_scores_detectors_on_real_photos(tmp_path):
     # the fit split (--fit-last 2: the first two photos) replayed backwards and every 2nd photo
     assert set(rec["fit_replays"]) == {"backwards", "every_2nd"}
     assert rec["fit_replays"]["backwards"]["hybrid"]["frames"] == 2
-    assert rec["fit_replays"]["every_2nd"]["learned_video"]["beyond_30px"] == []
+    assert rec["fit_replays"]["every_2nd"]["learned_video"]["beyond_30px"] == rec["video"]["hybrid"]["beyond_30px"] == []
     for group in ("photos", "video", "moving_photo"):
         for s in rec[group].values():
             assert s["detection_rate"] == 1.0 and s["pck_30"] == 1.0 and s["ms_per_frame"] > 0

@@ -129,6 +129,12 @@ def _scores(results: list[dict], fit_last: int | None = None) -> dict:
     return out
 
 
+def _beyond(results: list[dict], px: float = 30.0) -> list[int]:
+    """Photo numbers (1-based rows of labels.csv) of the labelled frames with no output within ``px``."""
+    return [r["row"] + 1 for r in results if r["gt"] is not None
+            and (not r["found"] or float(np.hypot(*(r["tip"] - r["gt"]))) > px)]
+
+
 def _step(det, img, t, gt, row: int) -> dict:
     d = det.process(img, t)
     return {"found": d.found, "tip": d.tip_end_uv, "cap": d.cap_uv, "gt": gt, "mode": d.mode, "row": row,
@@ -287,7 +293,7 @@ def run(args: argparse.Namespace) -> dict:
         img = _read(path)
         for name, det in _shuffled(video_dets, rng):
             video[name].append(_step(det, img, i * dt, gt, row))
-    videos = {k: _scores(v, fit_last) for k, v in video.items()}
+    videos = {k: {**_scores(v, fit_last), "beyond_30px": _beyond(v)} for k, v in video.items()}
 
     # ---------------------------------------------------------------- the fit split replayed
     fit_items = [it for it in items if it[2] < fit_last]
@@ -309,8 +315,7 @@ def run(args: argparse.Namespace) -> dict:
             img = _read(path)
             for name, det in _shuffled(rp_dets, rng):
                 rp[name].append(_step(det, img, i * dt, gt, row))
-        replays[replay_names[key]] = {k: {**_scores(v), "beyond_30px": [r["row"] + 1 for r in v if r["gt"] is not None and (
-            not r["found"] or np.hypot(*(r["tip"] - r["gt"])) > 30)]} for k, v in rp.items()}
+        replays[replay_names[key]] = {k: {**_scores(v), "beyond_30px": _beyond(v)} for k, v in rp.items()}
 
     # ---------------------------------------------------------------- moving photos
     labelled = [(p, g, row) for p, g, row in items if g is not None]
