@@ -171,3 +171,46 @@ def test_where_the_colour_fails_the_fingertip_patch_follows(model):
     modes = [det.process(cv2.warpAffine(img, np.float32([[1, 0, sx], [0, 1, sy]]), (640, 480),
                                         borderMode=cv2.BORDER_REFLECT), k / 30).mode for k, (sx, sy) in enumerate(shifts)]
     assert all(m.startswith("learned") for m in modes)
+
+
+def test_a_patch_match_off_skin_goes_back_to_the_learned_model(model):
+    # the next frame tinted blue at the same grey levels (to within 6 of 255): the patch matches where it
+    # was cut but nothing there is skin any more, as where a mostly-background patch follows the scene
+    # instead of the finger (a plain grey frame would not do: pale skin has little saturation either)
+    img, _ = real_photo("TI1K_IMAGE_0401.jpg")
+    g = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    blue = np.clip(np.dstack([0.8 * g + 50, 0.8 * g, 0.8 * g - 19]), 0, 255).astype(np.uint8)
+    modes = []
+    for min_skin in (None, 0.5):
+        det = hybrid(model, template_min_skin=min_skin, cut_ncc=None)
+        assert det.process(img, 0.0).mode == "learned+refine"
+        modes.append(det.process(blue, 1 / 30).mode)
+    assert modes[0] == "tracked_template"       # without the check the patch follows
+    assert modes[1].startswith("learned")       # with it the learned model looks again
+    with pytest.raises(ConfigError, match="template_min_skin"):
+        HybridConfig(template_min_skin=1.5)
+
+
+def test_a_cap_fit_off_the_track_in_radius_position_and_direction_goes_back_to_the_learned_model(model):
+    from vishap.vision.hybrid import _Fit
+
+    img, _ = real_photo("TI1K_IMAGE_0401.jpg")
+    det = hybrid(model)
+    first = det.process(img, 0.0)
+    assert first.mode == "learned+refine"
+    r, d, pred = det._radius, det._direction.copy(), first.cap_uv.copy()
+    turned = np.array([d[1], -d[0]])                       # 90° off the finger's direction
+    far = pred + 2.0 * r * turned
+    assert det._disagrees(_Fit(far, 0.5 * r, turned), pred)
+    # any one or two of the three alone is common on good fits: kept
+    assert not det._disagrees(_Fit(far, r, turned), pred)
+    assert not det._disagrees(_Fit(pred + 0.5 * r * d, 0.5 * r, turned), pred)
+    assert not det._disagrees(_Fit(far, 0.5 * r, d), pred)
+    assert not hybrid(model, disagree_radius_ratio=None)._disagrees(_Fit(far, 0.5 * r, turned), pred)
+    # in a followed frame, such a fit sends the frame to the learned model
+    det._fit = lambda image, centre, radius, direction, extra_px=0.0: _Fit(centre + 2.0 * radius * turned,
+                                                                          0.5 * radius, turned)
+    d2 = det.process(img, 1 / 30)
+    assert d2.found and d2.mode.startswith("learned")
+    with pytest.raises(ConfigError, match="disagree_radius_ratio"):
+        HybridConfig(disagree_radius_ratio=0.0)

@@ -16,9 +16,15 @@
   follower with no limit on its run of frames); ``hybrid_no_cut_check`` (no scene-cut check) and
   ``hybrid_cap_end_no_cut_check`` (neither that nor the annotation's tip point: ``tip_end_uv`` at the
   cap's end, landmark 8 where no cap fit; ``hybrid_cap_end`` among the photos) show what each
-  of the hybrid's two latest changes buys;
+  of the hybrid's earlier changes buys, and ``hybrid_no_window_checks`` (no skin check on a patch
+  match, no check of a cap fit against the track) what its latest does (on independent photos the
+  window never runs, so the photos have no such row);
 * **peer** (``--mediapipe-task FILE``, where the ``mediapipe`` package is importable, e.g. in a separate
   environment): MediaPipe's own HandLandmarker in image and video mode beside them;
+* **fit replays**: the fit split played every 2nd photo (from the 1st and from the 2nd), every
+  3rd and backwards (``--fit-orders``): faster motion and more cuts than the file order, from the
+  photos tuning may look at; the hybrid with and without its window checks, ``learned_video`` and
+  MediaPipe's video mode where it runs. The frames beyond 30 px are listed by photo;
 * **moving photo**: a few photos moved along a smooth path (a video whose every frame has a known
   tip): the per-frame time of ``learned_video`` against the hybrid in pure tracking mode, and how
   well the tracked tip follows the motion.
@@ -55,6 +61,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fit-last", type=int, default=600,
                    help="photos 1..N (file order) are the fit split (tuned on), the rest held out (default 600)")
     p.add_argument("--recheck", default="3,5,10,20", help="hybrid re-check intervals to sweep on the video")
+    p.add_argument("--fit-orders", default="2,2b,3,r",
+                   help="replays of the fit split: 2 (every 2nd photo), 2b (every 2nd from the 2nd), 3 (every 3rd), "
+                        "r (backwards); empty: none")
     p.add_argument("--moving-photos", type=int, default=5, help="photos turned into moving-image videos (default 5)")
     p.add_argument("--moving-frames", type=int, default=60, help="frames per moving-image video (default 60)")
     p.add_argument("--mediapipe-task", default=None,
@@ -118,6 +127,12 @@ def _scores(results: list[dict], fit_last: int | None = None) -> dict:
                 out[split] = {k: sc[k] for k in ("frames", "detection_rate", "pck_10", "pck_20", "pck_30",
                                                  "median_error_px", "cap_pck_30")}
     return out
+
+
+def _beyond(results: list[dict], px: float = 30.0) -> list[int]:
+    """Photo numbers (1-based rows of labels.csv) of the labelled frames with no output within ``px``."""
+    return [r["row"] + 1 for r in results if r["gt"] is not None
+            and (not r["found"] or float(np.hypot(*(r["tip"] - r["gt"]))) > px)]
 
 
 def _step(det, img, t, gt, row: int) -> dict:
@@ -231,6 +246,7 @@ def run(args: argparse.Namespace) -> dict:
     dt = 1 / 30
     # the hybrid before its scene-cut check and the annotation's tip point (tip_end_uv at the cap's end)
     no_cut, cap_end = dict(cut_ncc=None), dict(tip_end_frac=1.0, landmark_tip_end_frac=None)
+    no_checks = dict(template_min_skin=None, disagree_radius_ratio=None)  # the window's checks off
 
     def make(kind: str, before: bool = False, **options):
         # before=True: MediaPipe's palm rule (best box ≥ 0.5, one zoom), and for the hybrid the patch
@@ -265,7 +281,8 @@ def run(args: argparse.Namespace) -> dict:
     video_dets = {"learned": make("image"), "learned_video": make("video"), "hybrid": make("hybrid"),
                   "learned_video_mediapipe_palm_rule": make("video", before=True),
                   "hybrid_before": make("hybrid", before=True), "hybrid_no_cut_check": make("hybrid", **no_cut),
-                  "hybrid_cap_end_no_cut_check": make("hybrid", **no_cut, **cap_end)}
+                  "hybrid_cap_end_no_cut_check": make("hybrid", **no_cut, **cap_end),
+                  "hybrid_no_window_checks": make("hybrid", **no_checks)}
     if peers:
         video_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
     for n in recheck:
@@ -276,14 +293,37 @@ def run(args: argparse.Namespace) -> dict:
         img = _read(path)
         for name, det in _shuffled(video_dets, rng):
             video[name].append(_step(det, img, i * dt, gt, row))
-    videos = {k: _scores(v, fit_last) for k, v in video.items()}
+    videos = {k: {**_scores(v, fit_last), "beyond_30px": _beyond(v)} for k, v in video.items()}
+
+    # ---------------------------------------------------------------- the fit split replayed
+    fit_items = [it for it in items if it[2] < fit_last]
+    orders = {"2": fit_items[::2], "2b": fit_items[1::2], "3": fit_items[::3], "r": fit_items[::-1]}
+    replay_names = {"2": "every_2nd", "2b": "every_2nd_from_2nd", "3": "every_3rd", "r": "backwards"}
+    replays = {}
+    for key in [k for k in str(getattr(args, "fit_orders", "")).split(",") if k]:
+        if key not in orders:
+            from vishap._core.errors import ConfigError
+
+            raise ConfigError(f"--fit-orders: unknown replay {key!r} (expected 2, 2b, 3 or r)", field="fit_orders")
+        rp_dets = {"hybrid": make("hybrid"), "hybrid_no_window_checks": make("hybrid", **no_checks),
+                   "learned_video": make("video")}
+        if peers:
+            rp_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
+        rp = {k: [] for k in rp_dets}
+        for i, (path, gt, row) in enumerate(progress(orders[key], desc=f"bench learned: fit {replay_names[key]}",
+                                                     unit="frame", quiet=quiet)):
+            img = _read(path)
+            for name, det in _shuffled(rp_dets, rng):
+                rp[name].append(_step(det, img, i * dt, gt, row))
+        replays[replay_names[key]] = {k: {**_scores(v), "beyond_30px": _beyond(v)} for k, v in rp.items()}
 
     # ---------------------------------------------------------------- moving photos
     labelled = [(p, g, row) for p, g, row in items if g is not None]
     picks = [labelled[int(j)] for j in np.linspace(0, len(labelled) - 1, max(0, args.moving_photos), dtype=int)] \
         if labelled and args.moving_photos > 0 else []
     mv_dets = {"learned_video": make("video"), "hybrid": make("hybrid"),
-               "hybrid_cap_end_no_cut_check": make("hybrid", **no_cut, **cap_end)}
+               "hybrid_cap_end_no_cut_check": make("hybrid", **no_cut, **cap_end),
+               "hybrid_no_window_checks": make("hybrid", **no_checks)}
     if peers:
         mv_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
     moving = {k: [] for k in mv_dets}
@@ -307,6 +347,7 @@ def run(args: argparse.Namespace) -> dict:
         "fit_last": fit_last,
         "annotation_along_finger": _label_offsets(photo["hybrid"], fit_last),
         "video": videos,
+        "fit_replays": replays,
         "moving_photo": movings,
         "hybrid_over_learned_video_time": {
             "video_median": ratio(videos, "hybrid", "learned_video", "ms_per_frame"),
@@ -321,6 +362,10 @@ def run(args: argparse.Namespace) -> dict:
             "moving_photo_mean": ratio(movings, "hybrid", "mediapipe_video", "ms_per_frame_mean"),
             "moving_photo_mean_before": ratio(movings, "hybrid_cap_end_no_cut_check", "mediapipe_video",
                                               "ms_per_frame_mean"),
+            "moving_photo_mean_no_window_checks": ratio(movings, "hybrid_no_window_checks", "mediapipe_video",
+                                                        "ms_per_frame_mean"),
+            "video_mean_no_window_checks": ratio(videos, "hybrid_no_window_checks", "mediapipe_video",
+                                                 "ms_per_frame_mean"),
         } if peers else None,
         "hybrid_over_learned_time": {
             "video_mean": ratio(videos, "hybrid", "learned", "ms_per_frame_mean"),
@@ -362,7 +407,7 @@ def _chart(rec: dict, path: Path) -> None:
 def _colour(name: str) -> str:
     if name.startswith("hybrid_recheck"):
         return "tab:orange"
-    if name.endswith(("_palm_rule", "_before", "_cap_end", "_no_cut_check")):
+    if name.endswith(("_palm_rule", "_before", "_cap_end", "_no_cut_check", "_no_window_checks")):
         return "tab:gray"
     return {"learned": "tab:blue", "learned_video": "tab:purple", "hybrid": "tab:red",
             "mediapipe_image": "tab:green", "mediapipe_video": "tab:olive"}.get(name, "grey")

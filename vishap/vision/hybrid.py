@@ -30,6 +30,21 @@ skin mask that holds and a start. The hybrid gives each the part it is good at:
    A frame where neither holds (no fit near the prediction pointing the right way, no match
    above ``min_ncc``, the patch's run used up) is a miss; ``max_misses`` misses in a row hand
    the frame back to the learned model.
+4. **checks** on what the window measures, each of which hands the frame to the learned model at
+   once (found on photos 1–600 played in file order, every 2nd and 3rd photo, and backwards:
+   faster motion and more cuts than the file order alone):
+
+   * a patch match must land on skin: at least ``template_min_skin`` of the colour mask within
+     half a cap radius of the matched cap centre. Where the finger and the scene move apart (a
+     camera panning while the finger moves), the patch, mostly background, matched the scene at
+     NCC ≥ 0.95 and walked off the finger (every 3rd photo: 40 → 69 → 104 px in three frames);
+   * a cap fit that disagrees with the track in all three ways at once — its radius off the
+     tracked one by more than a factor ``1/disagree_radius_ratio``, its centre more than
+     ``disagree_jump_radii`` radii from the prediction, its direction turned by more than
+     acos(``disagree_cos``) — is a cap of something else (backwards: after a cut the thumbnail
+     test missed, a cap of half the radius 1.8 radii away, turned 57°, followed 60 px off the tip).
+     Any one of the three alone is common on good frames (of 1212 fits there 5 % lie farther than
+     1.65 radii, 5 % turn more than 46°); two of them flag 28 good fits, all three none.
 
 A **scene cut** (a frame unrelated to the last: another clip, a new moment of a video cut
 together) is seen before the window is looked at: a 40×30 thumbnail of the frame that correlates
@@ -88,6 +103,15 @@ class HybridConfig:
     # limit below, chosen on photos 1–600)
     min_ncc: float = 0.95
     max_template_run: int = 3      # patch-followed frames in a row before the learned model looks again
+    # a patch match with less of the colour mask than this within half a radius of its cap centre is a
+    # miss (None: no check; see the module notes, checks)
+    template_min_skin: float | None = 0.5
+    # a cap fit off the track in radius (ratio below this or above its inverse), position (farther than
+    # disagree_jump_radii radii from the prediction) and direction (cos below disagree_cos) at once sends
+    # the frame to the learned model (disagree_radius_ratio None: no check; see the module notes, checks)
+    disagree_radius_ratio: float | None = 0.6
+    disagree_jump_radii: float = 1.2
+    disagree_cos: float = 0.8
     # a frame whose thumbnail correlates less than this with the last frame's is a scene cut: the learned
     # model looks at once (None: off). Photos 1–600 in file order, 599 consecutive pairs: 503 at ≥ 0.9,
     # 70 below 0.4 and two at 0.41 and 0.46 (jumps to an unrelated moment or clip), 24 at 0.55–0.9 (camera
@@ -105,6 +129,12 @@ class HybridConfig:
             raise ConfigError(f"skin must be 'local' or 'model', got {self.skin!r}", field="skin")
         if int(self.recheck_every) < 1 or int(self.max_misses) < 0:
             raise ConfigError("recheck_every must be ≥ 1 and max_misses ≥ 0", field="recheck_every")
+        if self.template_min_skin is not None and not 0.0 <= float(self.template_min_skin) <= 1.0:
+            raise ConfigError(f"template_min_skin must lie in [0, 1] or be None, got {self.template_min_skin}",
+                              field="template_min_skin")
+        if self.disagree_radius_ratio is not None and not 0.0 < float(self.disagree_radius_ratio) <= 1.0:
+            raise ConfigError(f"disagree_radius_ratio must lie in (0, 1] or be None, got {self.disagree_radius_ratio}",
+                              field="disagree_radius_ratio")
         if self.cut_ncc is not None and not -1.0 <= float(self.cut_ncc) <= 1.0:
             raise ConfigError(f"cut_ncc must lie in [-1, 1] or be None, got {self.cut_ncc}", field="cut_ncc")
 
@@ -283,6 +313,28 @@ class HybridDetector:
                 best = (dist, _Fit(uv, float(tip.cap_radius_px), d))
         return None if best is None else best[1]
 
+    def _disagrees(self, fit: _Fit, pred: np.ndarray) -> bool:
+        """Is the window's cap fit off the track in radius, position and direction at once?"""
+        c = self.config
+        if c.disagree_radius_ratio is None:
+            return False
+        ratio = fit.radius / max(self._radius, 1e-6)
+        return (not c.disagree_radius_ratio <= ratio <= 1.0 / c.disagree_radius_ratio
+                and float(np.hypot(*(fit.cap_uv - pred))) > c.disagree_jump_radii * self._radius
+                and float(fit.direction @ self._direction) < c.disagree_cos)
+
+    def _skin_share(self, image: np.ndarray, centre: np.ndarray, half: float) -> float:
+        """Share of the colour mask in the square of half-side ``half`` around ``centre`` (segmented
+        with a 3-pixel margin so the median filter sees the square's neighbourhood)."""
+        h, w = image.shape[:2]
+        k, m = max(1, int(round(half))), max(1, int(round(half))) + 3
+        x, y = int(round(centre[0])), int(round(centre[1]))
+        x0, y0, x1, y1 = max(0, x - m), max(0, y - m), min(w, x + m + 1), min(h, y + m + 1)
+        if x1 - x0 < 3 or y1 - y0 < 3:
+            return 0.0
+        sq = self._skin_mask(image[y0:y1, x0:x1])[max(0, y - k) - y0: y + k + 1 - y0, max(0, x - k) - x0: x + k + 1 - x0]
+        return float(np.count_nonzero(sq)) / max(1, sq.size)
+
     def _patch(self, image: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray | None:
         """Grey patch of half-side ``template_radii`` radii centred on the cap (None at the border)."""
         half = max(4, int(round(self.config.template_radii * radius)))
@@ -312,7 +364,12 @@ class HybridDetector:
         # sub-pixel: the vertex of a parabola through the peak and its two neighbours, per axis
         di = _parabola_vertex(ncc[j, i - 1], best, ncc[j, i + 1]) if 0 < i < ncc.shape[1] - 1 else 0.0
         dj = _parabola_vertex(ncc[j - 1, i], best, ncc[j + 1, i]) if 0 < j < ncc.shape[0] - 1 else 0.0
-        return np.array([x0 + i + di + half, y0 + j + dj + half]) - self._template_offset
+        uv = np.array([x0 + i + di + half, y0 + j + dj + half]) - self._template_offset
+        min_skin = self.config.template_min_skin
+        if min_skin is not None and (self._have_colour or self._skin_model is not None) \
+                and self._skin_share(image, uv, 0.5 * self._radius) < min_skin:
+            return None
+        return uv
 
     def _find(self, image: np.ndarray, t: float, timings: dict) -> MonoDetection:
         if self._cap_at_find is not None and self.tracker.tracking:
@@ -354,6 +411,9 @@ class HybridDetector:
         pred = self.tracker.predict(t)
         sig = float(np.sqrt(max(self.tracker.kf.P[0, 0], self.tracker.kf.P[1, 1])))
         fit = self._fit(image, pred, self._radius, self._direction, extra_px=2.0 * sig)
+        if fit is not None and self._disagrees(fit, pred):
+            timings["window_ms"] = 1e3 * (time.perf_counter() - t0)
+            return None  # not a miss the tracker can coast through: the learned model looks now
         mode, frac = "tracked", self.config.tip_end_frac
         if fit is None and self._template is not None and self._template_run < self.config.max_template_run:
             uv = self._match(image, pred, extra_px=2.0 * sig)
