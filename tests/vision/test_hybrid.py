@@ -214,3 +214,7 @@ def test_a_cap_fit_off_the_track_in_radius_position_and_direction_goes_back_to_t
     assert d2.found and d2.mode.startswith("learned")
     with pytest.raises(ConfigError, match="disagree_radius_ratio"):
         HybridConfig(disagree_radius_ratio=0.0)
+    with pytest.raises(ConfigError, match="disagree_jump_radii"):
+        HybridConfig(disagree_jump_radii=float("nan"))
+    with pytest.raises(ConfigError, match="disagree_cos"):
+        HybridConfig(disagree_cos=1.5)

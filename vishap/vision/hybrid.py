@@ -135,6 +135,11 @@ class HybridConfig:
         if self.disagree_radius_ratio is not None and not 0.0 < float(self.disagree_radius_ratio) <= 1.0:
             raise ConfigError(f"disagree_radius_ratio must lie in (0, 1] or be None, got {self.disagree_radius_ratio}",
                               field="disagree_radius_ratio")
+        if not float(self.disagree_jump_radii) > 0.0 or not math.isfinite(float(self.disagree_jump_radii)):
+            raise ConfigError(f"disagree_jump_radii must be a finite number > 0, got {self.disagree_jump_radii}",
+                              field="disagree_jump_radii")
+        if not -1.0 <= float(self.disagree_cos) <= 1.0:
+            raise ConfigError(f"disagree_cos must lie in [-1, 1], got {self.disagree_cos}", field="disagree_cos")
         if self.cut_ncc is not None and not -1.0 <= float(self.cut_ncc) <= 1.0:
             raise ConfigError(f"cut_ncc must lie in [-1, 1] or be None, got {self.cut_ncc}", field="cut_ncc")
 
