@@ -371,19 +371,17 @@ class ReachFit(_SampleWindow):
             samples = [samples[i] for i in idx]
         ts = np.array([t for t, _ in samples])
         q = (np.array([p for _, p in samples]) - np.asarray(centre, float)) @ R_robot_obj
-        T0, TT, coef, pw, mt, var = self._fit_grid(ts, q)
+        T0, TT, coef, pw, mt, mean, var = self._fit_grid(ts, q)
         tau = np.interp(mt, _M_TABLE, _TAU_TABLE)
         self.t_touch = float(pw @ (T0 + tau * TT))
         sel = pw > 1e-4 * pw.max()  # the candidates that carry the average
         self._fit = (T0[sel], TT[sel], coef[sel], pw[sel] / pw[sel].sum(), np.asarray(R_robot_obj, float))
-        uv = coef[:, 0, :] + coef[:, 1, :] * mt[:, None] + coef[:, 2, :] * (4.0 * mt * (1.0 - mt))[:, None]
-        mean = pw @ uv
         return centre + R_robot_obj[:, 0] * mean[0] + R_robot_obj[:, 1] * mean[1], var
 
     def _fit_grid(self, ts, q):
         """The weighted grid of reaches fitted to samples at ``ts`` (N,) with surface-frame coordinates
         ``q`` (N, 3): start times, durations, tangential coefficients, weights, touch phases, the touch
-        point's variance."""
+        point's mean and variance."""
         t_last = ts[-1]
         t0 = np.arange(t_last - self.window_s - 0.5, t_last + 1e-9, self.t0_step)
         T0, TT = np.meshgrid(t0, self.T, indexing="ij")
@@ -429,4 +427,4 @@ class ReachFit(_SampleWindow):
         Ainv = np.linalg.inv(A[b])
         xt = np.array([1.0, mt[b], 4.0 * mt[b] * (1.0 - mt[b])])
         var += float(xt @ Ainv @ xt)
-        return T0, TT, coef, pw, mt, var
+        return T0, TT, coef, pw, mt, mean, var

@@ -317,8 +317,6 @@ class World:
         obliquely lands on a keycap that moves with it (issue 16's readiness) and stays ≥ 10 mm inside
         its edge."""
         if self._run is None or self.held is None:
-            if reach is None and self.p_meas is not None and subj.height(self.p_meas) > 0.0:
-                reach = self.reach.contact(subj.centre, subj.R)
             tt = self.reach.t_touch
             if reach is None or tt is None:
                 return np.zeros(3)
@@ -365,20 +363,23 @@ class World:
             frozen = self.hold_m > h > -self.contact_margin_m
         if frozen:  # hold the meeting point, do not chase noise (nor the extrapolated finger under the surface)
             if self.held is None:  # the sample that freezes it is the newest: the dead-band applies to it too
-                if self.plan is None or _tangential(c - self.plan, subj.normal) > self.deadband_m:
-                    self.plan = c
-                self.held = self.plan
+                self.held = self._plan_to(c, subj)
             elif self.replan_m > 0.0 and _tangential(c - self.held, subj.normal) > self.replan_m:
                 self.held, self._run = c, None  # re-planned only to keep the finger on the face
             return self.held.copy()
         self.held = None
         self._run = None
         if near:  # near the finger: move only when the landing needs it
-            if self.plan is None or _tangential(c - self.plan, subj.normal) > self.deadband_m:
-                self.plan = c
-            return self.plan.copy()
+            return self._plan_to(c, subj).copy()
         self.plan = None
         return c
+
+    def _plan_to(self, c: np.ndarray, subj: SceneObject) -> np.ndarray:
+        """The waiting point near the finger: ``c`` once it lies more than ``deadband_m`` sideways from
+        the last one (smaller moves are noise), else the last one."""
+        if self.plan is None or _tangential(c - self.plan, subj.normal) > self.deadband_m:
+            self.plan = c
+        return self.plan
 
     def _route(self, start: np.ndarray, X: np.ndarray, subj: SceneObject) -> np.ndarray:
         """``X`` if the straight path from ``start`` is clear; else a way-point. Leaving the top of an
