@@ -262,13 +262,14 @@ class TravelLimiter:
         else:
             ix = iy = iz = 0.0
         ba, bj = BRAKE * a, BRAKE * j
-        s, slope = _braking_speed(d, (ux - vx) * ix + (uy - vy) * iy + (uz - vz) * iz, ax * ix + ay * iy + az * iz, ba, bj)
+        closing = (ux - vx) * ix + (uy - vy) * iy + (uz - vz) * iz  # the output's speed towards the target
+        s, slope = _braking_speed(d, closing, ax * ix + ay * iy + az * iz, ba, bj)
         lin = self.settle_gain * d
         if lin <= s:
             s, slope = lin, self.settle_gain
         if s >= self.max_speed:
             s, slope = self.max_speed, 0.0
-        af = -slope * ((ux - vx) * ix + (uy - vy) * iy + (uz - vz) * iz)  # d(s)/dt = s'(d)·ḋ
+        af = -slope * closing  # d(s)/dt = s'(d)·ḋ
         afx, afy, afz = af * ix, af * iy, af * iz
         wx, wy, wz = vx + s * ix, vy + s * iy, vz + s * iz  # wanted velocity: the target's plus closing
         if rest is not None:  # a target that will stop: never faster towards where it stops than the
