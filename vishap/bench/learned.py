@@ -120,8 +120,7 @@ def _scores(results: list[dict], fit_last: int | None = None) -> dict:
         modes[r["mode"]] = modes.get(r["mode"], 0) + 1
     out["modes"] = modes
     if fit_last is not None:
-        for split, part in (("fit", [r for r in results if r["row"] < fit_last]),
-                            ("held_out", [r for r in results if r["row"] >= fit_last])):
+        for split, part in _split(results, fit_last).items():
             if any(r["gt"] is not None for r in part):
                 sc = _scores(part)
                 out[split] = {k: sc[k] for k in ("frames", "detection_rate", "pck_10", "pck_20", "pck_30",
@@ -164,9 +163,13 @@ def _label_offset(results: list[dict], mode: str = "learned+refine") -> dict:
 
 def _label_offsets(results: list[dict], fit_last: int) -> dict:
     """:func:`_label_offset` per split (fit: rows < ``fit_last``) and per cap (fitted, landmarks')."""
-    parts = {"fit": [r for r in results if r["row"] < fit_last], "held_out": [r for r in results if r["row"] >= fit_last]}
     return {split: {"fitted_cap": _label_offset(part, "learned+refine"), "landmark_cap": _label_offset(part, "learned")}
-            for split, part in parts.items()}
+            for split, part in _split(results, fit_last).items()}
+
+
+def _split(results: list[dict], fit_last: int) -> dict[str, list[dict]]:
+    """The per-frame results of the fit split (rows < ``fit_last``) and the held-out one."""
+    return {"fit": [r for r in results if r["row"] < fit_last], "held_out": [r for r in results if r["row"] >= fit_last]}
 
 
 def _moving_frames(img: np.ndarray, gt: np.ndarray, n: int, seed: int):

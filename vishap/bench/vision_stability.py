@@ -97,6 +97,10 @@ class _MOG2Segmenter:
             m = np.ascontiguousarray(m[y0:y1, x0:x1])
         return m
 
+    def segment_region(self, image, roi=None, *, pad=0):
+        """The mask over all of ``roi`` and its origin (MOG2 has no cheaper region; ``pad`` is moot)."""
+        return self.segment(image, roi), (0, 0) if roi is None else tuple(roi[:2])
+
 
 def _run_method(method, rig, frames, gt, occ0, n_occ):
     from vishap.vision.capture import StereoFrame

@@ -88,7 +88,7 @@ def axis_lines(rig: StereoRig, views, *, from_radii: float, to_radii: float, max
         parts.append(got[3])
     K = len(views)
     counts = [len(q) for q in parts]
-    p = np.concatenate(parts) if K > 1 else parts[0]          # each view's points about its cap centre
+    p = np.concatenate(parts)                                 # each view's points about its cap centre
     # each point as (u, v, 1) in its view's block of three columns: one product maps every point
     # into its own view's axis frame
     X = np.zeros((len(p), 3 * K))
@@ -98,9 +98,9 @@ def axis_lines(rig: StereoRig, views, *, from_radii: float, to_radii: float, max
         X[start:start + n, 3 * k + 1] = parts[k].imag
         X[start:start + n, 3 * k + 2] = 1.0
         start += n
-    mom = X[:, :2] if K == 1 else np.column_stack((p.real, p.imag))
+    mom = np.column_stack((p.real, p.imag))
     mom = np.column_stack((np.ones(len(p)), mom, mom * mom, mom[:, 0] * mom[:, 1]))  # 1, u, v, u², v², uv
-    group_base = 0 if K == 1 else np.repeat(2 * np.arange(K), counts)  # the left side of view k is group 2k
+    group_base = np.repeat(2 * np.arange(K), counts)  # the left side of view k is group 2k
     ids = np.arange(2 * K)[:, None]
     c = [0j] * K                                               # the axis's point beside the cap (about the cap)
     d = [s[1] for s in seeds]                                  # unit direction into the finger

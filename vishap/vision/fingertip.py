@@ -166,7 +166,6 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
     xs = pts[:, 0].astype(np.intp)
     ys = pts[:, 1].astype(np.intp)
     # steps 6–9 on the square ring
-    off = square_ring_offsets(r2)
     n_half = 4 * r2
     flat, off_flat = mask.ravel(), _flat_offsets(r2, w)  # candidates lie r2 inside the mask
 

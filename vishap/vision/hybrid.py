@@ -283,7 +283,7 @@ class HybridDetector:
             return False
         thumb, last = _thumbnail(image), self._thumb
         self._thumb = thumb
-        return last is not None and (last.shape != thumb.shape or float(np.vdot(last, thumb)) < self.config.cut_ncc)
+        return last is not None and float(np.vdot(last, thumb)) < self.config.cut_ncc
 
     # ------------------------------------------------------------------ the two halves
     def _skin_mask(self, win: np.ndarray) -> np.ndarray:

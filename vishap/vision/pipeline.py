@@ -525,10 +525,7 @@ class VisionPipeline:
         # the mask only where it can hold skin, widened by the largest square ring searched (a
         # full frame: the same candidates without allocating and scanning all of it)
         pad = math.ceil((1 + cfg.fingertip.delta_r_frac) * self.K / min(z, *cfg.z_search_m)) + 2
-        if hasattr(seg, "segment_region"):
-            mask, org = seg.segment_region(image, roi, pad=pad)
-        else:  # a segmenter with the plain interface (learn, segment): the whole region
-            mask, org = seg.segment(image, roi), roi[:2]
+        mask, org = seg.segment_region(image, roi, pad=pad)
         self._skin_px[side] = mask  # counted by _finger_gone, when a frame finds no fingertip
         td = time.perf_counter()
         prior = None if pred is None or mode == "recheck" else pred - org
