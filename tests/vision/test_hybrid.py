@@ -83,8 +83,8 @@ def test_a_scene_cut_goes_to_the_learned_model_where_the_window_would_hold_a_sta
     a, _ = real_photo("TI1K_IMAGE_0377.jpg")
     b, tip = real_photo("TI1K_IMAGE_0378.jpg")
     modes, err = {}, {}
-    for cut in (None, 0.5):
-        det = hybrid(model, cut_ncc=cut)
+    for cut in (None, 0.5):  # the cut check alone (the re-read and the jump check would catch this pair too)
+        det = hybrid(model, cut_ncc=cut, reread_unfitted=False, recheck_jump_radii=None)
         det.process(a, 0.0)
         d = det.process(b, 1 / 30)
         modes[cut], err[cut] = d.mode, np.hypot(*(d.cap_uv - tip))
@@ -218,3 +218,50 @@ def test_a_cap_fit_off_the_track_in_radius_position_and_direction_goes_back_to_t
         HybridConfig(disagree_jump_radii=float("nan"))
     with pytest.raises(ConfigError, match="disagree_cos"):
         HybridConfig(disagree_cos=1.5)
+
+
+def test_a_cap_fit_that_jumps_from_the_prediction_goes_back_to_the_learned_model(model):
+    # the window's cap fit moved to a neighbouring cap (the thumb beside a pinching index, a knuckle):
+    # same radius, same direction, but farther from the prediction than recheck_jump_radii radii
+    from vishap.vision.hybrid import _Fit
+
+    img, _ = real_photo("TI1K_IMAGE_0401.jpg")
+    modes = {}
+    for jump in (1.6, None):
+        det = hybrid(model, recheck_jump_radii=jump)
+        first = det.process(img, 0.0)
+        assert first.mode == "learned+refine"
+        r, d, pred = det._radius, det._direction.copy(), first.cap_uv.copy()
+        side = np.array([d[1], -d[0]])
+        assert not det._jumped(_Fit(pred + 1.5 * r * side, r, d), pred)
+        assert det._jumped(_Fit(pred + 1.7 * r * side, r, d), pred) == (jump is not None)
+        det._fit = lambda image, centre, radius, direction, extra_px=0.0: _Fit(centre + 1.7 * radius * side, radius,
+                                                                              direction.copy())
+        modes[jump] = det.process(img, 1 / 30).mode
+    assert modes[1.6].startswith("learned") and modes[None] == "tracked"
+    with pytest.raises(ConfigError, match="recheck_jump_radii"):
+        HybridConfig(recheck_jump_radii=0.0)
+
+
+def test_a_find_no_cap_fit_confirms_is_read_again_on_its_own_region(model):
+    # fit-split photo 117: a near hand whose palm box frames it badly; the first reading puts the index tip
+    # 240 px off (a curled finger), the landmark model on the region its own landmarks give finds it
+    from vishap.vision.learned import roi_from_landmarks
+
+    img, tip = real_photo("TI1K_IMAGE_0117.jpg")
+    det = hybrid(model, reread_unfitted=False)
+    once = det.process(img, 0.0)
+    first_hand = det.learned.last_hand
+    det = hybrid(model)
+    twice = det.process(img, 0.0)
+    assert once.mode == "learned"                          # no cap fit confirmed the first reading
+    assert np.hypot(*(once.tip_end_uv - tip)) > 100.0      # measured 233 px
+    assert np.hypot(*(twice.tip_end_uv - tip)) < 30.0      # measured 17 px
+    # the second reading is the landmark model on the first reading's own region
+    assert det.learned.last_hand.rect == roi_from_landmarks(first_hand.uv)
+    # a find the cap fit confirms is not read again (one landmark run)
+    img2, _ = real_photo("TI1K_IMAGE_0401.jpg")
+    det = hybrid(model)
+    calls = []
+    det.learned.reread = lambda *a, **k: calls.append(1)
+    assert det.process(img2, 0.0).mode == "learned+refine" and not calls

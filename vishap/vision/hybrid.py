@@ -117,6 +117,12 @@ class HybridConfig:
     # 70 below 0.4 and two at 0.41 and 0.46 (jumps to an unrelated moment or clip), 24 at 0.55–0.9 (camera
     # swings, which the window follows); 20 fit photos moved ≤ 4 px per frame (1180 pairs): all ≥ 0.89
     cut_ncc: float | None = 0.5
+    # a find whose landmark cap no cap fit confirms reads the landmarks once more on the region they
+    # themselves give, and takes that reading (see the module notes, checks; False: the first reading)
+    reread_unfitted: bool = True
+    # a window cap fit farther than this many cap radii from the prediction sends the frame to the learned
+    # model (None: off; see the module notes, checks)
+    recheck_jump_radii: float | None = 1.6
     # where tip_end_uv lies, in cap radii out from the cap centre along the finger (1: the cap's end),
     # for a fitted cap and for the landmarks' cap (None: landmark 8); the annotations' medians on photos 1–600
     tip_end_frac: float = -0.17
@@ -140,6 +146,10 @@ class HybridConfig:
                               field="disagree_jump_radii")
         if not -1.0 <= float(self.disagree_cos) <= 1.0:
             raise ConfigError(f"disagree_cos must lie in [-1, 1], got {self.disagree_cos}", field="disagree_cos")
+        if self.recheck_jump_radii is not None and not (float(self.recheck_jump_radii) > 0.0
+                                                        and math.isfinite(float(self.recheck_jump_radii))):
+            raise ConfigError(f"recheck_jump_radii must be a finite number > 0 or None, got {self.recheck_jump_radii}",
+                              field="recheck_jump_radii")
         if self.cut_ncc is not None and not -1.0 <= float(self.cut_ncc) <= 1.0:
             raise ConfigError(f"cut_ncc must lie in [-1, 1] or be None, got {self.cut_ncc}", field="cut_ncc")
 
@@ -328,6 +338,11 @@ class HybridDetector:
                 and float(np.hypot(*(fit.cap_uv - pred))) > c.disagree_jump_radii * self._radius
                 and float(fit.direction @ self._direction) < c.disagree_cos)
 
+    def _jumped(self, fit: _Fit, pred: np.ndarray) -> bool:
+        """Is the window's cap fit farther from the prediction than ``recheck_jump_radii`` radii?"""
+        j = self.config.recheck_jump_radii
+        return j is not None and float(np.hypot(*(fit.cap_uv - pred))) > j * self._radius
+
     def _skin_share(self, image: np.ndarray, centre: np.ndarray, half: float) -> float:
         """Share of the colour mask in the square of half-side ``half`` around ``centre`` (segmented
         with a 3-pixel margin so the median filter sees the square's neighbourhood)."""
@@ -388,12 +403,12 @@ class HybridDetector:
             self.tracker = TipTracker(self.config.tracker)
             self._cap_at_find = None
             return MonoDetection(t, False, mode="learned", reason="no hand found by the learned model")
-        cap, r, d = cap_from_landmarks(hand.uvz)
-        t0 = time.perf_counter()
-        if self._skin_model is None:
-            self._have_colour = self._local.fit(image, hand, r)
-        fit = self._fit(image, cap, r, d) if (self._have_colour or self._skin_model is not None) else None
-        timings["refine_ms"] = 1e3 * (time.perf_counter() - t0)
+        cap, r, d, fit = self._refine(image, hand, timings)
+        if fit is None and self.config.reread_unfitted:
+            again = self.learned.reread(image, hand, timings)
+            if again is not None:
+                hand = again
+                cap, r, d, fit = self._refine(image, hand, timings)
         if fit is not None:
             self._tip_frac, mode = self.config.tip_end_frac, "learned+refine"
             tip_end = fit.tip_end_uv(self._tip_frac)
@@ -410,13 +425,24 @@ class HybridDetector:
         return MonoDetection(t, True, tip_end_uv=tip_end, cap_uv=meas.copy(), radius_px=radius, direction=direction,
                              confidence=float(hand.presence), mode=mode)
 
+    def _refine(self, image: np.ndarray, hand: HandLandmarks, timings: dict):
+        """The landmarks' cap (centre, radius, direction) and the window's cap fit around it (or None);
+        learns the hand's colour from ``hand`` first."""
+        cap, r, d = cap_from_landmarks(hand.uvz)
+        t0 = time.perf_counter()
+        if self._skin_model is None:
+            self._have_colour = self._local.fit(image, hand, r)
+        fit = self._fit(image, cap, r, d) if (self._have_colour or self._skin_model is not None) else None
+        timings["refine_ms"] = timings.get("refine_ms", 0.0) + 1e3 * (time.perf_counter() - t0)
+        return cap, r, d, fit
+
     def _follow(self, image: np.ndarray, t: float, timings: dict) -> MonoDetection | None:
         """One tracked frame; None when the window lost the tip (the caller finds it again)."""
         t0 = time.perf_counter()
         pred = self.tracker.predict(t)
         sig = float(np.sqrt(max(self.tracker.kf.P[0, 0], self.tracker.kf.P[1, 1])))
         fit = self._fit(image, pred, self._radius, self._direction, extra_px=2.0 * sig)
-        if fit is not None and self._disagrees(fit, pred):
+        if fit is not None and (self._disagrees(fit, pred) or self._jumped(fit, pred)):
             timings["window_ms"] = 1e3 * (time.perf_counter() - t0)
             return None  # not a miss the tracker can coast through: the learned model looks now
         mode, frac = "tracked", self.config.tip_end_frac

@@ -419,6 +419,22 @@ class LearnedDetector:
         self.last_hand = hand
         return hand, timings
 
+    def reread(self, image_bgr: np.ndarray, hand: HandLandmarks, timings: dict) -> HandLandmarks | None:
+        """The landmark model once more, on the region ``hand``'s own landmarks give (what video mode
+        looks at on the next frame), or None when it finds no hand there. A reading from a palm box or
+        from a followed region sized for another moment can be off (a large hand read in a small region
+        as a curled finger); the region drawn around its own landmarks frames the hand as the model
+        was trained to see it. The followed region and :attr:`last_hand` become the new reading's."""
+        t0 = time.perf_counter()
+        again = self.model.landmarks(image_bgr, roi_from_landmarks(hand.uv), bgr=True)
+        timings["landmarks_ms"] = timings.get("landmarks_ms", 0.0) + 1e3 * (time.perf_counter() - t0)
+        if again.presence < self.config.min_presence:
+            return None
+        again.palm_score, again.candidate = hand.palm_score, hand.candidate
+        self._roi = roi_from_landmarks(again.uv)
+        self.last_hand = again
+        return again
+
     def _find_hand(self, image_bgr: np.ndarray, timings: dict) -> HandLandmarks | None:
         """Palm candidates over the whole frame at each zoom, best palm score first, each verified by
         the landmark model's presence score (see :class:`LearnedConfig`). With ``palm_sure_score``
