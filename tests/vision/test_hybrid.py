@@ -84,7 +84,7 @@ def test_a_scene_cut_goes_to_the_learned_model_where_the_window_would_hold_a_sta
     b, tip = real_photo("TI1K_IMAGE_0378.jpg")
     modes, err = {}, {}
     for cut in (None, 0.5):  # the cut check alone (the re-read and the jump check would catch this pair too)
-        det = hybrid(model, cut_ncc=cut, reread_unfitted=False, recheck_jump_radii=None)
+        det = hybrid(model, cut_ncc=cut, max_rereads=0, recheck_jump_radii=None)
         det.process(a, 0.0)
         d = det.process(b, 1 / 30)
         modes[cut], err[cut] = d.mode, np.hypot(*(d.cap_uv - tip))
@@ -249,7 +249,7 @@ def test_a_find_no_cap_fit_confirms_is_read_again_on_its_own_region(model):
     from vishap.vision.learned import roi_from_landmarks
 
     img, tip = real_photo("TI1K_IMAGE_0117.jpg")
-    det = hybrid(model, reread_unfitted=False)
+    det = hybrid(model, max_rereads=0)
     once = det.process(img, 0.0)
     first_hand = det.learned.last_hand
     det = hybrid(model)
@@ -258,6 +258,8 @@ def test_a_find_no_cap_fit_confirms_is_read_again_on_its_own_region(model):
     assert np.hypot(*(once.tip_end_uv - tip)) > 100.0      # measured 233 px
     assert np.hypot(*(twice.tip_end_uv - tip)) < 30.0      # measured 17 px
     # the second reading is the landmark model on the first reading's own region
+    det = hybrid(model, max_rereads=1)
+    det.process(img, 0.0)
     assert det.learned.last_hand.rect == roi_from_landmarks(first_hand.uv)
     # a find the cap fit confirms is not read again (one landmark run)
     img2, _ = real_photo("TI1K_IMAGE_0401.jpg")
@@ -265,3 +267,23 @@ def test_a_find_no_cap_fit_confirms_is_read_again_on_its_own_region(model):
     calls = []
     det.learned.reread = lambda *a, **k: calls.append(1)
     assert det.process(img2, 0.0).mode == "learned+refine" and not calls
+
+
+def test_a_find_whose_readings_never_settle_is_not_followed(model):
+    # fit-split photo 106: the landmark model flips between a curled and a stretched index on each reading
+    # (tips 24-32 cap radii apart); after max_rereads readings that never agreed the next frame is a find
+    # again, where following it would track the patch of an unconfirmed cap
+    img, _ = real_photo("TI1K_IMAGE_0106.jpg")
+    moved = cv2.warpAffine(img, np.float32([[1, 0, 2], [0, 1, 1]]), (640, 480), borderMode=cv2.BORDER_REFLECT)
+    modes, rereads = {}, {}
+    for recheck in (True, False):
+        det = hybrid(model, recheck_unsettled=recheck)
+        calls, reread = [], det.learned.reread
+        det.learned.reread = lambda *a, **k: (calls.append(1), reread(*a, **k))[1]
+        assert det.process(img, 0.0).mode == "learned"
+        rereads[recheck] = len(calls)
+        modes[recheck] = det.process(moved, 1 / 30).mode
+    assert rereads[False] == det.config.max_rereads
+    assert modes[True].startswith("learned") and modes[False] == "tracked_template"
+    with pytest.raises(ConfigError, match="max_rereads"):
+        HybridConfig(max_rereads=-1)

@@ -258,10 +258,12 @@ def test_bench_scores_detectors_on_real_photos(tmp_path):
     args = argparse.Namespace(out=str(tmp_path / "out"), data=str(data), every=1, recheck="2",
                               moving_photos=1, moving_frames=8, fit_last=2, fit_orders="r,2")
     rec = bench.run(args)
-    assert set(rec["photos"]) == {"learned", "hybrid", "hybrid_cap_end", "learned_mediapipe_palm_rule"}
+    assert set(rec["photos"]) == {"learned", "hybrid", "hybrid_cap_end", "learned_mediapipe_palm_rule",
+                                  "hybrid_no_reread_no_jump"}
     assert set(rec["video"]) == {"learned", "learned_video", "hybrid", "hybrid_recheck_2",
                                  "learned_video_mediapipe_palm_rule", "hybrid_before", "hybrid_no_cut_check",
-                                 "hybrid_cap_end_no_cut_check", "hybrid_no_window_checks"}
+                                 "hybrid_cap_end_no_cut_check", "hybrid_no_window_checks",
+                                 "hybrid_no_reread_no_jump"}
     # the fit split (--fit-last 2: the first two photos) replayed backwards and every 2nd photo
     assert set(rec["fit_replays"]) == {"backwards", "every_2nd"}
     assert rec["fit_replays"]["backwards"]["hybrid"]["frames"] == 2

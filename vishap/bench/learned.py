@@ -17,8 +17,10 @@
   ``hybrid_cap_end_no_cut_check`` (neither that nor the annotation's tip point: ``tip_end_uv`` at the
   cap's end, landmark 8 where no cap fit; ``hybrid_cap_end`` among the photos) show what each
   of the hybrid's earlier changes buys, and ``hybrid_no_window_checks`` (no skin check on a patch
-  match, no check of a cap fit against the track) what its latest does (on independent photos the
-  window never runs, so the photos have no such row);
+  match, no check of a cap fit against the track) what those do (on independent photos the
+  window never runs, so the photos have no such row); ``hybrid_no_reread_no_jump`` (no second
+  landmark reading of a find no cap fit confirms, no re-check on a cap fit that jumps from the
+  prediction) what its latest do, on photos, video and moving photos;
 * **peer** (``--mediapipe-task FILE``, where the ``mediapipe`` package is importable, e.g. in a separate
   environment): MediaPipe's own HandLandmarker in image and video mode beside them;
 * **fit replays**: the fit split played every 2nd photo (from the 1st and from the 2nd), every
@@ -250,6 +252,8 @@ def run(args: argparse.Namespace) -> dict:
     # the hybrid before its scene-cut check and the annotation's tip point (tip_end_uv at the cap's end)
     no_cut, cap_end = dict(cut_ncc=None), dict(tip_end_frac=1.0, landmark_tip_end_frac=None)
     no_checks = dict(template_min_skin=None, disagree_radius_ratio=None)  # the window's checks off
+    # the hybrid before its re-read of an unconfirmed find and its jump re-check
+    no_reread = dict(max_rereads=0, recheck_jump_radii=None)
 
     def make(kind: str, before: bool = False, **options):
         # before=True: MediaPipe's palm rule (best box ≥ 0.5, one zoom), and for the hybrid the patch
@@ -264,7 +268,8 @@ def run(args: argparse.Namespace) -> dict:
     # ---------------------------------------------------------------- photos
     peers = _mediapipe_peers(getattr(args, "mediapipe_task", None))
     photo_dets = {"learned": make("image"), "hybrid": make("hybrid"), "hybrid_cap_end": make("hybrid", **cap_end),
-                  "learned_mediapipe_palm_rule": make("image", before=True)}
+                  "learned_mediapipe_palm_rule": make("image", before=True),
+                  "hybrid_no_reread_no_jump": make("hybrid", **no_reread)}
     if peers:
         photo_dets["mediapipe_image"] = peers["mediapipe_image"]
     from vishap._core.results import progress
@@ -285,7 +290,8 @@ def run(args: argparse.Namespace) -> dict:
                   "learned_video_mediapipe_palm_rule": make("video", before=True),
                   "hybrid_before": make("hybrid", before=True), "hybrid_no_cut_check": make("hybrid", **no_cut),
                   "hybrid_cap_end_no_cut_check": make("hybrid", **no_cut, **cap_end),
-                  "hybrid_no_window_checks": make("hybrid", **no_checks)}
+                  "hybrid_no_window_checks": make("hybrid", **no_checks),
+                  "hybrid_no_reread_no_jump": make("hybrid", **no_reread)}
     if peers:
         video_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
     for n in recheck:
@@ -309,6 +315,7 @@ def run(args: argparse.Namespace) -> dict:
 
             raise ConfigError(f"--fit-orders: unknown replay {key!r} (expected 2, 2b, 3 or r)", field="fit_orders")
         rp_dets = {"hybrid": make("hybrid"), "hybrid_no_window_checks": make("hybrid", **no_checks),
+                   "hybrid_no_reread_no_jump": make("hybrid", **no_reread),
                    "learned_video": make("video")}
         if peers:
             rp_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
@@ -326,7 +333,8 @@ def run(args: argparse.Namespace) -> dict:
         if labelled and args.moving_photos > 0 else []
     mv_dets = {"learned_video": make("video"), "hybrid": make("hybrid"),
                "hybrid_cap_end_no_cut_check": make("hybrid", **no_cut, **cap_end),
-               "hybrid_no_window_checks": make("hybrid", **no_checks)}
+               "hybrid_no_window_checks": make("hybrid", **no_checks),
+               "hybrid_no_reread_no_jump": make("hybrid", **no_reread)}
     if peers:
         mv_dets["mediapipe_video"] = _MediaPipePeer(args.mediapipe_task, "video")
     moving = {k: [] for k in mv_dets}
@@ -369,6 +377,10 @@ def run(args: argparse.Namespace) -> dict:
                                                         "ms_per_frame_mean"),
             "video_mean_no_window_checks": ratio(videos, "hybrid_no_window_checks", "mediapipe_video",
                                                  "ms_per_frame_mean"),
+            "moving_photo_mean_no_reread_no_jump": ratio(movings, "hybrid_no_reread_no_jump", "mediapipe_video",
+                                                         "ms_per_frame_mean"),
+            "video_mean_no_reread_no_jump": ratio(videos, "hybrid_no_reread_no_jump", "mediapipe_video",
+                                                  "ms_per_frame_mean"),
         } if peers else None,
         "hybrid_over_learned_time": {
             "video_mean": ratio(videos, "hybrid", "learned", "ms_per_frame_mean"),
@@ -410,7 +422,7 @@ def _chart(rec: dict, path: Path) -> None:
 def _colour(name: str) -> str:
     if name.startswith("hybrid_recheck"):
         return "tab:orange"
-    if name.endswith(("_palm_rule", "_before", "_cap_end", "_no_cut_check", "_no_window_checks")):
+    if name.endswith(("_palm_rule", "_before", "_cap_end", "_no_cut_check", "_no_window_checks", "_no_reread_no_jump")):
         return "tab:gray"
     return {"learned": "tab:blue", "learned_video": "tab:purple", "hybrid": "tab:red",
             "mediapipe_image": "tab:green", "mediapipe_video": "tab:olive"}.get(name, "grey")
