@@ -287,3 +287,23 @@ def test_a_find_whose_readings_never_settle_is_not_followed(model):
     assert modes[True].startswith("learned") and modes[False] == "tracked_template"
     with pytest.raises(ConfigError, match="max_rereads"):
         HybridConfig(max_rereads=-1)
+
+
+def test_an_unconfirmed_find_that_agrees_with_the_track_is_not_read_again(model):
+    # every cap fit failing (as on a pale finger before a pale wall), each find is unconfirmed. With no track
+    # the find is read again; a re-check in a running track whose landmark cap lands within the window's
+    # gate, at the track's radius, is confirmed by the track and costs no second landmark run
+    img, _ = real_photo("TI1K_IMAGE_0401.jpg")
+    moved = cv2.warpAffine(img, np.float32([[1, 0, 2], [0, 1, 1]]), (640, 480), borderMode=cv2.BORDER_REFLECT)
+    rereads = {}
+    for trust in (True, False):
+        det = hybrid(model, recheck_every=1, reread_trusts_track=trust)
+        det._fit = lambda *a, **k: None
+        calls, reread = [], det.learned.reread
+        det.learned.reread = lambda *a, **k: (calls.append(1), reread(*a, **k))[1]
+        assert det.process(img, 0.0).mode == "learned" and len(calls) >= 1
+        det.process(moved, 1 / 30)                         # followed: recheck_every = 1 tracked frame
+        n = len(calls)
+        assert det.process(img, 2 / 30).mode == "learned"  # the re-check
+        rereads[trust] = len(calls) - n
+    assert rereads[True] == 0 and rereads[False] >= 1

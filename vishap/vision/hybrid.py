@@ -144,6 +144,7 @@ class HybridConfig:
     max_rereads: int = 2
     reread_agree_radii: float = 1.0
     recheck_unsettled: bool = True
+    reread_trusts_track: bool = True
     # a window cap fit farther than this many cap radii from the prediction sends the frame to the learned
     # model (None: off; see the module notes, checks)
     recheck_jump_radii: float | None = 1.6
@@ -365,6 +366,15 @@ class HybridDetector:
                 and float(np.hypot(*(fit.cap_uv - pred))) > c.disagree_jump_radii * self._radius
                 and float(fit.direction @ self._direction) < c.disagree_cos)
 
+    def _agrees_with_track(self, cap: np.ndarray, radius: float, pred: np.ndarray, sig: float) -> bool:
+        """Does a landmark cap agree with the track: within the window's gate of the prediction, with a
+        radius within the disagreement ratio of the track's?"""
+        c = self.config
+        if float(np.hypot(*(cap - pred))) > c.gate_radii * self._radius + 2.0 * sig:
+            return False
+        q = c.disagree_radius_ratio
+        return q is None or q <= radius / self._radius <= 1.0 / q
+
     def _jumped(self, fit: _Fit, pred: np.ndarray) -> bool:
         """Is the window's cap fit farther from the prediction than ``recheck_jump_radii`` radii?"""
         j = self.config.recheck_jump_radii
@@ -418,9 +428,14 @@ class HybridDetector:
             return None
         return uv
 
-    def _find(self, image: np.ndarray, t: float, timings: dict) -> MonoDetection:
+    def _find(self, image: np.ndarray, t: float, timings: dict, cut: bool = False) -> MonoDetection:
         if self._cap_at_find is not None and self.tracker.tracking:
             self.learned.shift_roi(self.tracker.kf.position - self._cap_at_find)
+        # the track this find can be checked against (none after a scene cut: it belongs to another scene)
+        track = None
+        if not cut and self.tracker.tracking and self._radius > 0:
+            pred = self.tracker.predict(t)
+            track = (pred, float(np.sqrt(max(self.tracker.kf.P[0, 0], self.tracker.kf.P[1, 1]))))
         hand, tm = self.learned.detect_hand(image)
         timings.update(tm)
         self._since_find = 0
@@ -431,7 +446,8 @@ class HybridDetector:
             self._cap_at_find = None
             return MonoDetection(t, False, mode="learned", reason="no hand found by the learned model")
         cap, r, d, fit = self._refine(image, hand, timings)
-        settled = fit is not None or self.config.max_rereads == 0
+        settled = fit is not None or self.config.max_rereads == 0 or (
+            self.config.reread_trusts_track and track is not None and self._agrees_with_track(cap, r, *track))
         for _ in range(0 if settled else self.config.max_rereads):
             again = self.learned.reread(image, hand, timings)
             if again is None:
@@ -515,7 +531,7 @@ class HybridDetector:
         if not cut and self.tracker.tracking and self._radius > 0 and self._since_find < self.config.recheck_every:
             det = self._follow(image, t, timings)
         if det is None:
-            det = self._find(image, t, timings)
+            det = self._find(image, t, timings, cut)
         timings["total_ms"] = 1e3 * (time.perf_counter() - t0)
         det.timings = timings
         return det
