@@ -373,6 +373,10 @@ class HybridDetector:
                 and float(np.hypot(*(fit.cap_uv - pred))) > c.disagree_jump_radii * self._radius
                 and float(fit.direction @ self._direction) < c.disagree_cos)
 
+    def _track_sigma(self) -> float:
+        """The track's position standard deviation (pixels, the larger axis)."""
+        return float(np.sqrt(max(self.tracker.kf.P[0, 0], self.tracker.kf.P[1, 1])))
+
     def _agrees_with_track(self, cap: np.ndarray, radius: float, pred: np.ndarray, sig: float) -> bool:
         """Does a landmark cap agree with the track: within the window's gate of the prediction, with a
         radius within the disagreement ratio of the track's?"""
@@ -442,7 +446,7 @@ class HybridDetector:
         track = None
         if not cut and self.tracker.tracking and self._radius > 0:
             pred = self.tracker.predict(t)
-            track = (pred, float(np.sqrt(max(self.tracker.kf.P[0, 0], self.tracker.kf.P[1, 1]))))
+            track = (pred, self._track_sigma())
         hand, tm = self.learned.detect_hand(image)
         timings.update(tm)
         self._since_find = 0
@@ -498,7 +502,7 @@ class HybridDetector:
         """One tracked frame; None when the window lost the tip (the caller finds it again)."""
         t0 = time.perf_counter()
         pred = self.tracker.predict(t)
-        sig = float(np.sqrt(max(self.tracker.kf.P[0, 0], self.tracker.kf.P[1, 1])))
+        sig = self._track_sigma()
         fit = self._fit(image, pred, self._radius, self._direction, extra_px=2.0 * sig)
         if fit is not None and (self._disagrees(fit, pred) or self._jumped(fit, pred)):
             timings["window_ms"] = 1e3 * (time.perf_counter() - t0)
