@@ -202,9 +202,10 @@ class TravelLimiter:
         the speed towards it along the normal (:meth:`normal_cap_at`) while the finger is within
         ``near_m``. With ``finger_m`` but no normal, the whole speed is held to the normal cap at the
         distance ``finger_m``. ``finger`` (optional): the estimated pad point and its velocity
-        ``(x, y, z, vx, vy, vz)`` at ``t`` in the target's coordinates; the caps then also act on the
-        finger as it will be ``lead_s`` from now against this output, where the device will be by then
-        (the nearer of the two wins), so the device has slowed down *before* it is near the finger.
+        ``(x, y, z, vx, vy, vz)`` at ``t`` in the target's coordinates, or a tuple of several such
+        estimates of the same finger; the caps then also act on the finger as each puts it ``lead_s``
+        from now against this output, where the device will be by then (the nearest wins), so the
+        device has slowed down *before* it is near the finger.
         ``rest`` (optional): the point where the moving target will stop unless a new sample moves it
         on (the shaper's newest sample); the output's speed towards it stays one it can stop from
         there, so a target that stops dead is not overrun (with bounded jerk the output cannot stop
@@ -236,16 +237,16 @@ class TravelLimiter:
         else:
             nx, ny, nz = normal
         if finger is not None and self.lead_s > 0.0:  # the finger lead_s ahead, against where the device will be then
-            fx, fy, fz, fvx, fvy, fvz = finger
             L = self.lead_s
-            rx, ry, rz = fx + fvx * L - cx, fy + fvy * L - cy, fz + fvz * L - cz
-            dp = math.sqrt(rx * rx + ry * ry + rz * rz)
-            if dp == dp:
-                finger_m = dp if finger_m is None or not finger_m < dp else finger_m
-                if normal is not None and (gap_m is None or not gap_m < -TOUCH_M):
-                    # a finger predicted through the face is landing on it, not under it
-                    gp = max(rx * nx + ry * ny + rz * nz, 0.0)
-                    gap_m = gp if gap_m is None or not gap_m < gp else gap_m
+            for fx, fy, fz, fvx, fvy, fvz in (finger if isinstance(finger[0], tuple) else (finger,)):
+                rx, ry, rz = fx + fvx * L - cx, fy + fvy * L - cy, fz + fvz * L - cz
+                dp = math.sqrt(rx * rx + ry * ry + rz * rz)
+                if dp == dp:
+                    finger_m = dp if finger_m is None or not finger_m < dp else finger_m
+                    if normal is not None and (gap_m is None or not gap_m < -TOUCH_M):
+                        # a finger predicted through the face is landing on it, not under it
+                        gp = max(rx * nx + ry * ny + rz * nz, 0.0)
+                        gap_m = gp if gap_m is None or not gap_m < gp else gap_m
         cap = self.cap_at(finger_m)
         if normal is None:
             capn = math.inf
