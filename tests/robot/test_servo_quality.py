@@ -52,6 +52,7 @@ def test_the_measures_find_what_the_log_holds(tmp_path):
     assert r["max_force_step_outside_contact_n"] == pytest.approx(2.0)
     assert r["hold_ripple_above_30hz_n_rms"] == pytest.approx(0.05 / np.sqrt(2), rel=0.05)
     assert r["device_speed_near_finger_max_m_s"] == pytest.approx(0.2, rel=0.02)
+    assert 1.92 < r["device_speed_near_finger_max_t_s"] < 2.0  # within 20 mm of the finger from 1.925 s
     assert len(r["touches"]) == 1 and r["touches"][0]["makes_in_100ms"] == 3
     # Λ inferred from depth: free → engaged and back twice, then engaged (1 mm > engage_m)
     assert r["lambda_changes"] == 5 and r["lambda_changes_per_approach"] == [5]
@@ -152,3 +153,14 @@ def test_the_chart_draws_from_analysed_logs(tmp_path):
     png = chart([rec], alone, tmp_path)
     assert png.is_file() and png.stat().st_size > 10_000
     assert len(rec["ready_touches"]) == 1  # the log's one touch, judged by device_ready
+
+
+def test_the_record_names_the_demo_and_moment_of_the_fastest_device_near_the_finger(tmp_path):
+    from vishap.bench.servo_quality import _worst_near
+
+    rec = analyse(read_log(_log(tmp_path)))
+    slow = {"scene": "button", "seed": 3, "device_speed_near_finger_max_m_s": 0.1, "device_speed_near_finger_max_t_s": 0.5}
+    got = _worst_near([slow, {**rec, "scene": "wall", "seed": 1}])
+    assert got == {"scene": "wall", "seed": 1, "t_s": rec["device_speed_near_finger_max_t_s"],
+                   "m_s": rec["device_speed_near_finger_max_m_s"]}
+    assert _worst_near([]) is None

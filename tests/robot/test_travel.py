@@ -310,3 +310,23 @@ def test_a_cap_that_falls_faster_than_the_device_brakes_does_not_turn_it_back():
     assert vs[0] == pytest.approx(lim.near_speed)  # it was faster than the cap: stepped down at once
     assert vs.max() <= lim.near_speed + 1e-9
     assert vs[:40].min() > 0.9 * lim.near_speed  # still on its way at the cap, not braking through zero
+
+
+def test_of_several_finger_estimates_the_nearest_caps_the_speed():
+    """Given two estimates of the finger (the world's and the caps' faster one), the limiter caps on
+    the one that puts the finger nearer; a far one never lifts the cap a near one set, and one estimate
+    alone gives the same output as before."""
+    def run(finger):
+        lim = TravelLimiter.for_approach(0.6, 40.0)
+        lim.reset(0.0, 0.0, 0.0)
+        for k in range(300):
+            out = lim.step(k * 1e-3, 0.2, 0.0, 0.0, 0.0, 0.0, 0.0, finger_m=0.2, finger=finger)
+        return out, lim.speed_cap
+
+    near = (0.14, 0.0, 0.0, 0.0, 0.0, 0.0)  # the finger 5 mm beyond where the output would be after 0.3 s at the cap
+    far = (0.5, 0.0, 0.0, 0.0, 0.0, 0.0)
+    cap_near = run(near)[1]
+    assert run((far, near))[1] == run((near, far))[1] == cap_near
+    assert run((far, near))[0] == run(near)[0]
+    assert run(far)[1] == 0.6 and cap_near < 0.6
+    assert run((far, far))[0] == run(far)[0]

@@ -9,9 +9,9 @@ from vishap.world.world import World
 
 def test_record_packs_and_unpacks_every_field():
     r = TargetRecord(7, (0.1, 0.2, -0.3), 1.5, 0.8, False, True, 2, True, False, (1.0, 2.0, 3.0), (0.1, 0.0, -0.2), 1.52,
-                     lost=True)
+                     lost=True, finger_fast=(1.1, 2.1, 3.1), finger_fast_velocity=(0.2, 0.0, -0.3))
     a = r.pack()
-    assert a.dtype == np.float64 and a.shape == (19,)
+    assert a.dtype == np.float64 and a.shape == (25,)
     assert TargetRecord.unpack(a) == r
     p, v = r.finger_at(1.62)
     assert np.allclose(p, [1.01, 2.0, 2.98]) and np.allclose(v, [0.1, 0.0, -0.2])
@@ -204,3 +204,41 @@ def test_scene_step_takes_visions_lost_report_and_falls_back_to_a_dropped_track(
     assert step.step(4 / 30, False, np.full(3, np.nan), 0.0, None)[0].lost
     # a fix is never lost, whatever the report
     assert not step.step(5 / 30, True, [0.2, 0.0, -0.12], 1.0, None, lost=True)[0].lost
+
+
+def test_the_servo_caps_near_the_finger_take_the_nearer_of_the_worlds_and_the_fast_estimate():
+    """A finger starting a reach from rest towards the device: the scene step's record carries, beside
+    the world's estimate, the caps' own faster one (vishap.world.predictor.near_predictor), which puts
+    the finger nearer while the world's velocity lags; the servo step hands both to the travel limiter."""
+    from vishap._core.motion import min_jerk
+    from vishap.world.predictor import KalmanPredictor
+
+    scene = load_scene("wall")
+    step = SceneStep(World(scene, predictor=KalmanPredictor(meas_std_m=0.0036)), np.eye(4), tip_radius_m=0.0,
+                     mount_offset=(0.0, 0.0, 0.0))
+    assert np.isclose(step.near.R[0, 0], 0.0036 ** 2)  # the world's measurement noise
+    top = scene.objects[0].centre + np.array([0.0, 0.0, 0.05])
+    for k in range(11):  # at rest, then 50 mm down in 0.3 s (peak 3.2 m/s²), at 30 Hz, up to 133 ms in
+        t = k / 30.0
+        p = top - np.array([0.0, 0.0, 0.05]) * min_jerk(max(t - 0.2, 0.0) / 0.3)
+        rec, _, _ = step.step(t, True, p, 1.0, None)
+    t_f = rec.finger_t
+    v_true = -0.05 * (min_jerk((t_f - 0.2 + 1e-4) / 0.3) - min_jerk((t_f - 0.2 - 1e-4) / 0.3)) / 2e-4
+    assert abs(rec.finger_velocity[2] - v_true) > 0.08  # the world's lags (−0.19 of −0.30 m/s) …
+    assert abs(rec.finger_fast_velocity[2] - v_true) < 0.03  # … the caps' follows
+    assert rec.finger_fast[2] < rec.finger[2]  # nearer the surface the device waits on
+
+    # the servo step hands both to the travel limiter, extrapolated to its tick in the end-effector's coordinates
+    from vishap.robot import kinematics
+    from vishap.runtime.assembly import make_servo_step, open_device
+
+    servo = make_servo_step(open_device("sim", passive_object=scene.passive_object.for_mujoco()), scene)
+    servo.device.reset(kinematics.ik(np.asarray(rec.X_ee)))
+    seen = {}
+    tick = servo.servo.tick
+    servo.servo.tick = lambda *a, **k: (seen.update(k), tick(*a, **k))
+    t = rec.finger_t + 0.01
+    servo.tick(t, rec)
+    world_state, fast_state = seen["finger"]
+    for got, p, v in ((world_state, rec.finger, rec.finger_velocity), (fast_state, rec.finger_fast, rec.finger_fast_velocity)):
+        assert np.allclose(got, [*(np.add(p, np.multiply(v, 0.01)) - servo.mount), *v])

@@ -264,6 +264,8 @@ def analyse(log: dict) -> dict:
         "approach_ripple_above_30hz_n_rms": appr_hi, "approach_ticks": n_appr,
         "contact_ripple_above_30hz_n_rms": cont_hi, "contact_ticks": n_cont,
         "device_speed_near_finger_max_m_s": float(speed[near].max()) if near.any() else 0.0,
+        # when: the moment to read the finger estimate's error at (docs/robot.md, "speed near the finger")
+        "device_speed_near_finger_max_t_s": float(t[near][np.argmax(speed[near])]) if near.any() else None,
         "time_faster_than_0_1_m_s_near_finger_ms": float(np.count_nonzero(near & (speed > 0.1)) * dt * 1e3),
         "touches": touches,
         "force_depth_r2": log["summary"].get("force_depth_r2"),
@@ -334,6 +336,15 @@ def _demo_folders(args, out: Path) -> list[tuple[str, int, Path]]:
     for (name, _), files in zip(todo, ran):
         commit_files(base, name, files)
     return folders
+
+
+def _worst_near(demos: list[dict]) -> dict | None:
+    """Where the device was fastest near the finger: ``{scene, seed, t_s, m_s}`` (None without demos)."""
+    if not demos:
+        return None
+    d = max(demos, key=lambda d: d["device_speed_near_finger_max_m_s"])
+    return {"scene": d["scene"], "seed": d["seed"], "t_s": d["device_speed_near_finger_max_t_s"],
+            "m_s": d["device_speed_near_finger_max_m_s"]}
 
 
 def demo_files(fields: dict) -> dict[str, bytes]:
@@ -479,6 +490,7 @@ def run(args) -> dict:
         "still_target_ripple_above_30hz_n_rms": nan_max([d["still_target_ripple_above_30hz_n_rms"] for d in demos]),
         "approach_ripple_above_30hz_n_rms": nan_max([d["approach_ripple_above_30hz_n_rms"] for d in demos]),
         "device_speed_near_finger_max_m_s": nan_max([d["device_speed_near_finger_max_m_s"] for d in demos]),
+        "device_speed_near_finger_max_at": _worst_near(demos),
         "touch_make_break_max": max((tc["makes_in_100ms"] for tc in touches), default=0),
         "touch_device_speed_mm_s_max": max((tc["device_normal_speed_mm_s"] for tc in touches), default=0.0),
         "tip_vibration_above_30hz_um_rms": alone["shipped"]["tip_vibration_above_30hz_um_rms"],

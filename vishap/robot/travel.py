@@ -26,7 +26,8 @@ The output's speed — the closing speed *and* the target's own velocity togethe
 ``max_speed_m_s``. Near the finger it is capped further, in two parts (``finger_m``, ``gap_m`` and
 ``normal`` of :meth:`TravelLimiter.step`):
 
-* within ``near_m`` (20 mm) of the estimated fingertip, plus ``margin_m`` for the estimate's error,
+* within ``near_m`` (20 mm) of the estimated fingertip (the nearest of the estimates given: the
+  world's and a faster one that follows a reach's start), plus ``margin_m`` for the estimate's error,
   the speed is at most ``near_speed_m_s`` (0.25 m/s), falling to it linearly from ``max_speed_m_s``
   ``near_m`` further out, so the device never sweeps past the finger fast;
 * the speed *towards* the finger along the subject's normal falls linearly with the finger's height
@@ -72,7 +73,10 @@ APPROACH_JERK_M_S3 = 1000.0
 APPROACH_LEAD_S = 0.040
 #: what the estimated fingertip's distance may be too long by (m): the world's estimate in the wall
 #: demos, extrapolated to the servo tick, was up to 11–15 mm further than the true pad (p99; p90
-#: 5–7 mm; median 0), and the device then crossed the true 20 mm at 0.3–0.37 m/s
+#: 5–7 mm; median 0), and the device then crossed the true 20 mm at 0.3–0.37 m/s. Most of that was its
+#: velocity lagging a reach's start; with the caps' own faster estimate beside it (the nearer wins,
+#: world.predictor.near_predictor) it is p90 3.5 mm within 35 mm of the finger, p99 14 mm in a reach's
+#: first 100 ms, when no filter knows yet that the finger has started (docs/robot.md)
 APPROACH_MARGIN_M = 0.010
 #: the output's cap near the finger: 12 % under the goal, the most the arm overran its target's speed
 #: in the demos while the PD took up the lag of a turn (0.26–0.27 m/s measured with the cap at 0.25)
@@ -202,9 +206,10 @@ class TravelLimiter:
         the speed towards it along the normal (:meth:`normal_cap_at`) while the finger is within
         ``near_m``. With ``finger_m`` but no normal, the whole speed is held to the normal cap at the
         distance ``finger_m``. ``finger`` (optional): the estimated pad point and its velocity
-        ``(x, y, z, vx, vy, vz)`` at ``t`` in the target's coordinates; the caps then also act on the
-        finger as it will be ``lead_s`` from now against this output, where the device will be by then
-        (the nearer of the two wins), so the device has slowed down *before* it is near the finger.
+        ``(x, y, z, vx, vy, vz)`` at ``t`` in the target's coordinates, or a tuple of several such
+        estimates of the same finger; the caps then also act on the finger as each puts it ``lead_s``
+        from now against this output, where the device will be by then (the nearest wins), so the
+        device has slowed down *before* it is near the finger.
         ``rest`` (optional): the point where the moving target will stop unless a new sample moves it
         on (the shaper's newest sample); the output's speed towards it stays one it can stop from
         there, so a target that stops dead is not overrun (with bounded jerk the output cannot stop
@@ -236,16 +241,16 @@ class TravelLimiter:
         else:
             nx, ny, nz = normal
         if finger is not None and self.lead_s > 0.0:  # the finger lead_s ahead, against where the device will be then
-            fx, fy, fz, fvx, fvy, fvz = finger
             L = self.lead_s
-            rx, ry, rz = fx + fvx * L - cx, fy + fvy * L - cy, fz + fvz * L - cz
-            dp = math.sqrt(rx * rx + ry * ry + rz * rz)
-            if dp == dp:
-                finger_m = dp if finger_m is None or not finger_m < dp else finger_m
-                if normal is not None and (gap_m is None or not gap_m < -TOUCH_M):
-                    # a finger predicted through the face is landing on it, not under it
-                    gp = max(rx * nx + ry * ny + rz * nz, 0.0)
-                    gap_m = gp if gap_m is None or not gap_m < gp else gap_m
+            for fx, fy, fz, fvx, fvy, fvz in (finger if isinstance(finger[0], tuple) else (finger,)):
+                rx, ry, rz = fx + fvx * L - cx, fy + fvy * L - cy, fz + fvz * L - cz
+                dp = math.sqrt(rx * rx + ry * ry + rz * rz)
+                if dp == dp:
+                    finger_m = dp if finger_m is None or not finger_m < dp else finger_m
+                    if normal is not None and (gap_m is None or not gap_m < -TOUCH_M):
+                        # a finger predicted through the face is landing on it, not under it
+                        gp = max(rx * nx + ry * ny + rz * nz, 0.0)
+                        gap_m = gp if gap_m is None or not gap_m < gp else gap_m
         cap = self.cap_at(finger_m)
         if normal is None:
             capn = math.inf

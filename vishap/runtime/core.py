@@ -34,6 +34,7 @@ from vishap.robot.device import DeviceState
 from vishap.robot.kinematics import tip_state_scalar
 from vishap.robot.object_gain import ENGAGED, FREE, SURFACE
 from vishap.runtime.safety import TargetGuard, record_values_valid
+from vishap.world.predictor import near_predictor
 
 __all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "ServoStep", "ServoTick", "GUARD_CODES",
            "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
@@ -74,12 +75,15 @@ class TargetRecord:
     finger_velocity: tuple = _NAN3
     finger_t: float = math.nan
     lost: bool = False
+    finger_fast: tuple = _NAN3  # the caps near the finger's own estimate at finger_t (predictor.near_predictor)
+    finger_fast_velocity: tuple = _NAN3
     valid: bool = True
 
     def pack(self) -> np.ndarray:
         return np.array([self.seq, *self.X_ee, self.made_at, self.confidence, float(self.calibrated),
                          float(self.armed), self.subject, float(self.imminent), float(self.in_contact),
-                         *self.finger, *self.finger_velocity, self.finger_t, float(self.lost)], dtype=np.float64)
+                         *self.finger, *self.finger_velocity, self.finger_t, float(self.lost),
+                         *self.finger_fast, *self.finger_fast_velocity], dtype=np.float64)
 
     @classmethod
     def unpack(cls, a, n_subjects: int | None = None) -> TargetRecord:
@@ -90,7 +94,7 @@ class TargetRecord:
         if len(v) != RECORD_SIZE or not record_values_valid(v[0], [v[i] for i in _FLAGS], v[8], n_subjects):
             return cls(valid=False)
         return cls(int(v[0]), tuple(v[1:4]), v[4], v[5], v[6] > 0.5, v[7] > 0.5, int(v[8]), v[9] > 0.5,
-                   v[10] > 0.5, tuple(v[11:14]), tuple(v[14:17]), v[17], v[18] > 0.5)
+                   v[10] > 0.5, tuple(v[11:14]), tuple(v[14:17]), v[17], v[18] > 0.5, tuple(v[19:22]), tuple(v[22:25]))
 
     def finger_at(self, t: float):
         """The tracked pad point extrapolated to ``t`` and its velocity (NaN when unknown)."""
@@ -116,6 +120,7 @@ class SceneStep:
         self.seq = 0
         self._flags = (-1, False, False)  # subject, imminent, in_contact of the newest interaction
         self.record = TargetRecord()
+        self.near = near_predictor(world.predictor)
 
     def pad_point(self, p_cam) -> np.ndarray:
         """Fingertip cap centre (camera frame) → pad point (robot frame)."""
@@ -137,12 +142,14 @@ class SceneStep:
             if found and np.all(np.isfinite(p_cam)):
                 p_pad = self.pad_point(p_cam)
                 inter = self.world.update(t_sample, p_pad, p_device)
+                self.near.observe(t_sample, p_pad)
             elif not found and self.armed:
                 inter = self.world.update(t_sample, None, p_device)
+                self.near.observe(t_sample, None)
         if not self.armed and (not calibrated or found):
             self.armed = True
         X = _NAN3
-        finger, v_f, t_f = _NAN3, _NAN3, math.nan
+        finger, v_f, t_f, near = _NAN3, _NAN3, math.nan, (_NAN3, _NAN3)
         if inter is not None:
             X = tuple(float(x) for x in np.asarray(inter.X_d, float) - self.mount)
             s = -1 if inter.object_name is None else self.names.index(inter.object_name)
@@ -150,10 +157,12 @@ class SceneStep:
             if inter.finger is not None:
                 finger, v_f = tuple(map(float, inter.finger)), tuple(map(float, inter.finger_velocity))
                 t_f = float(inter.finger_t)
+                near = tuple(tuple(map(float, x)) for x in self.near.state_at(t_f)) if self.near.ready else (_NAN3, _NAN3)
         self.seq += 1
         s, imminent, in_contact = self._flags
         self.record = TargetRecord(self.seq, X, float(t_sample), float(confidence), calibrated, self.armed,
-                                   s, imminent, in_contact, finger, v_f, t_f, lost=self._lost(found, confidence, lost))
+                                   s, imminent, in_contact, finger, v_f, t_f, lost=self._lost(found, confidence, lost),
+                                   finger_fast=near[0], finger_fast_velocity=near[1])
         return self.record, inter, p_pad
 
     @staticmethod
@@ -386,6 +395,9 @@ class ServoStep:
         if finger_m == finger_m:  # the tracked pad point and velocity now, in the end-effector's coordinates
             (fx, fy, fz), v, m, el = rec.finger, rec.finger_velocity, self.mount, t - rec.finger_t
             finger = (fx + v[0] * el - m[0], fy + v[1] * el - m[1], fz + v[2] * el - m[2], *v)
+            (gx, gy, gz), w = rec.finger_fast, rec.finger_fast_velocity
+            if gx == gx:  # and the caps' own, faster estimate: the nearer of the two wins
+                finger = (finger, (gx + w[0] * el - m[0], gy + w[1] * el - m[1], gz + w[2] * el - m[2], *w))
         self.servo.tick(t, None if key is None else X_ee, extra, t_sample=key, finger_m=finger_m, gap_m=gap,
                         normal=normal, finger=finger, joints=joints)
         return ServoTick(action, X_ee, F_law, dev, p_dev, fault, self.contact.state_code, scale, finger_m, pressed,

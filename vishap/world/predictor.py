@@ -17,7 +17,8 @@ import numpy as np
 
 from vishap._core.motion import min_jerk, min_jerk_rate
 
-__all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "MeetingPoint", "PathExtrapolator", "ReachFit", "make_predictor", "contact_point", "PREDICTORS"]
+__all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "MeetingPoint", "PathExtrapolator", "ReachFit", "make_predictor",
+           "near_predictor", "contact_point", "PREDICTORS", "NEAR_ACCEL_STD_M_S2"]
 
 
 class LastSample:
@@ -266,6 +267,27 @@ def make_predictor(name: str, **kwargs):
         return PREDICTORS[name](**kwargs)
     except KeyError:
         raise ValueError(f"unknown predictor {name!r}; expected one of {sorted(PREDICTORS)}") from None
+
+
+#: the white-acceleration σ (m/s²) of :func:`near_predictor`'s filter. The world's filter (2 m/s² against
+#: the demos' 3.6 mm stereo σ) let its velocity lag a reach starting from rest by 0.14 m/s 130 ms in
+#: (wall demo seed 1's second approach: −0.17 against −0.31 m/s), putting the finger 40 ms ahead 10–14 mm
+#: further from the device than it was; at 15 the lag is ≈ 0.03 m/s there (docs/robot.md, "speed near the finger")
+NEAR_ACCEL_STD_M_S2 = 15.0
+
+
+def near_predictor(predictor) -> KalmanPredictor:
+    """The finger estimate the device's speed caps near the finger use beside the world's: a
+    constant-velocity Kalman filter with the same measurement noise as ``predictor`` (its ``R``;
+    the default without one) whose process noise (:data:`NEAR_ACCEL_STD_M_S2`) lets its velocity follow
+    a reach from rest. The world's smoother filter serves the meeting point, whose landing it was
+    tuned for; its velocity lags a starting reach by 100 ms, so the finger it extrapolates is too far.
+    The caps take whichever of the two puts the finger nearer the device: this one is noisier, and
+    its noise can only slow the device, never speed it up near the finger."""
+    R = getattr(predictor, "R", None)
+    if R is None:
+        return KalmanPredictor(accel_std_m_s2=NEAR_ACCEL_STD_M_S2)
+    return KalmanPredictor(accel_std_m_s2=NEAR_ACCEL_STD_M_S2, meas_std_m=float(np.sqrt(np.trace(np.asarray(R, float)) / 3.0)))
 
 
 def contact_point(p_robot, v_robot, normal, offset_m: float, *, horizon_s: float, min_speed_m_s: float = 0.02):
