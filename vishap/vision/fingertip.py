@@ -143,31 +143,37 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
     if h < 2 * r2 + 1 or w < 2 * r2 + 1:
         return []
     # steps 1, 4, 5: whole circle is skin; outside the mask counts as non-skin.
-    # Shortcut (exact): a pixel whose whole square of half-side r2 is skin has S_square = 8·r2,
-    # which step 7 rejects, so those pixels (a palm's interior) are dropped before gathering.
-    inner = cv2.erode(mask, _rect(r2), borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    nearest = prior_uv is not None and max_tips == 1 and config.fill_ratio >= 1.0
     if config.fill_ratio >= 1.0:
-        filled = cv2.erode(mask, disk, borderType=cv2.BORDER_CONSTANT, borderValue=0)
-        cand = cv2.subtract(filled, inner)
+        cand = cv2.erode(mask, disk, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+        if not nearest:
+            # Shortcut (exact): a pixel whose whole square of half-side r2 is skin has S_square = 8·r2,
+            # which step 7 rejects, so those pixels (a palm's interior) are dropped before gathering
+            # (the nearest-first search below tests few candidates and needs no second erosion)
+            cand = cv2.subtract(cand, cv2.erode(mask, _rect(r2), borderType=cv2.BORDER_CONSTANT, borderValue=0))
         scores = None
     else:
+        inner = cv2.erode(mask, _rect(r2), borderType=cv2.BORDER_CONSTANT, borderValue=0)
         cnt = cv2.filter2D((mask > 0).astype(np.float32), -1, disk.astype(np.float32),
                            borderType=cv2.BORDER_CONSTANT)
         cand = ((cnt >= config.fill_ratio * area - 1e-3) & (mask > 0) & (inner == 0)).view(np.uint8)
         scores = cnt
-    cand[:r2] = 0
-    cand[h - r2:] = 0
-    cand[:, :r2] = 0
-    cand[:, w - r2:] = 0
-    pts = cv2.findNonZero(cand)
+    # candidates lie r2 inside the mask (their square within it)
+    pts = cv2.findNonZero(cand[r2:h - r2, r2:w - r2])
     if pts is None:
         return []
     pts = pts.reshape(-1, 2)
-    xs = pts[:, 0].astype(np.intp)
-    ys = pts[:, 1].astype(np.intp)
+    xs = pts[:, 0] + r2
+    ys = pts[:, 1] + r2
     # steps 6–9 on the square ring
     n_half = 4 * r2
-    flat, off_flat = mask.ravel(), _flat_offsets(r2, w)  # candidates lie r2 inside the mask
+    flat, off_flat = mask.ravel(), _flat_offsets(r2, w)
+    if nearest:
+        found = _nearest_candidate(flat, xs, ys, w, off_flat, n_half, r2, config, prior_uv)
+        if found is None:
+            return []
+        k, ring_k = found
+        return _tips(mask, r, config, r2, xs[k: k + 1], ys[k: k + 1], ring_k[None], float(area), None, [0])
 
     def ring_test(xs, ys):
         ring = flat[(ys * w + xs)[:, None] + off_flat] > 0  # (M, 8 r2)
@@ -175,35 +181,21 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
         n_diag = (ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
         keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2) \
             & (n_diag <= config.max_diagonal_pairs)
-        return xs[keep], ys[keep], ring[keep], keep
+        return xs[keep], ys[keep], ring[keep]
 
-    ref = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64)
-    tie = None
-    if prior_uv is not None and max_tips == 1 and scores is None and xs.size > 48:
-        # equal scores: the winner is the valid candidate nearest the prior, so test candidates in
-        # order of distance, a chunk at a time, and stop at the first chunk holding a valid one
-        d2 = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
-        order = np.argsort(d2, kind="stable")
-        for k in range(0, order.size, 32):
-            sel = order[k: k + 32]
-            cx, cy, cring, keep = ring_test(xs[sel], ys[sel])
-            if cx.size:
-                break
-        xs, ys, ring, tie = cx, cy, cring, d2[sel][keep]  # (the distances of step 10, already known)
-    else:
-        if xs.size > _PREFILTER_MIN:  # many candidates (full frame): S_square of all from an integral image first
-            ii = cv2.integral(cv2.threshold(mask, 0, 1, cv2.THRESH_BINARY)[1])
-            s_square = _box_sum(ii, xs, ys, r2) - _box_sum(ii, xs, ys, r2 - 1)
-            keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2)
-            xs, ys = xs[keep], ys[keep]
-        xs, ys, ring, _ = ring_test(xs, ys)
+    if xs.size > _PREFILTER_MIN:  # many candidates (full frame): S_square of all from an integral image first
+        ii = cv2.integral(cv2.threshold(mask, 0, 1, cv2.THRESH_BINARY)[1])
+        s_square = _box_sum(ii, xs, ys, r2) - _box_sum(ii, xs, ys, r2 - 1)
+        keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2)
+        xs, ys = xs[keep], ys[keep]
+    xs, ys, ring = ring_test(xs, ys)
     if xs.size == 0:
         return []
     score = float(area) if scores is None else scores[ys, xs].astype(np.float64)  # (scalar: all equal)
     # step 10: best score first; ties broken by the prior or by extremity
     if prior_uv is not None:
-        if tie is None:
-            tie = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
+        ref = np.asarray(prior_uv, dtype=np.float64)
+        tie = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
         ext = None                  # (extremity not measured: 0)
     else:
         m = cv2.moments(mask, binaryImage=True)
@@ -223,6 +215,32 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
             if len(chosen) >= max_tips:
                 break
             alive &= (xs - xs[k]) ** 2 + (ys - ys[k]) ** 2 > (2 * r2) ** 2
+    return _tips(mask, r, config, r2, xs, ys, ring, score, ext, chosen)
+
+
+def _nearest_candidate(flat, xs, ys, w, off_flat, n_half, r2, config, prior_uv):
+    """Steps 6–9 for one tip near a prior (a tracking window): with every score equal the winner is
+    the valid candidate nearest ``prior_uv`` (the first in the candidates' order among equally near
+    ones), so candidates are tested in order of distance, a chunk at a time, up to the first valid
+    one: ``(its index, its ring of skin flags)``, or None."""
+    d2 = (xs - float(prior_uv[0])) ** 2 + (ys - float(prior_uv[1])) ** 2
+    order = np.argsort(d2, kind="stable")
+    at = ys * w + xs
+    lo, hi = config.ring_min * r2, config.ring_max * r2
+    for k in range(0, order.size, 32):
+        sel = order[k: k + 32]
+        ring = flat[at[sel][:, None] + off_flat] > 0  # (M, 8 r2)
+        s_square = ring.sum(axis=1)
+        ok = (s_square >= lo) & (s_square <= hi) & ((ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
+                                                    <= config.max_diagonal_pairs)
+        j = int(ok.argmax())
+        if ok[j]:
+            return int(sel[j]), ring[j]
+    return None
+
+
+def _tips(mask, r, config, r2, xs, ys, ring, score, ext, chosen) -> list:
+    """The chosen candidates as :class:`Fingertip` results, their cap circles fitted (``config.refine``)."""
     # direction into the finger: the mean offset of each tip's skin ring pixels (sums of small
     # integers: exact in any order)
     ring_k = ring[chosen]
@@ -233,7 +251,7 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
         nd = math.hypot(dx, dy)
         d = np.array([dx / nd, dy / nd]) if nd > 0 else np.array([0.0, 1.0])
         tips.append(Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r),
-                              score=float(score if scores is None else score[k]),
+                              score=score if isinstance(score, float) else float(score[k]),
                               n_candidates=int(xs.size), extremity_px=0.0 if ext is None else float(ext[k])))
     if config.refine:
         _refine_all(mask, tips, r2)
