@@ -89,17 +89,20 @@ def axis_lines(rig: StereoRig, views, *, from_radii: float, to_radii: float, max
     K = len(views)
     counts = [len(q) for q in parts]
     p = np.concatenate(parts)                                 # each view's points about its cap centre
+    uv = p.view(np.float64).reshape(-1, 2)                    # … as (u, v) rows
     # each point as (u, v, 1) in its view's block of three columns: one product maps every point
     # into its own view's axis frame
     X = np.zeros((len(p), 3 * K))
     start = 0
     for k, n in enumerate(counts):
-        X[start:start + n, 3 * k] = parts[k].real
-        X[start:start + n, 3 * k + 1] = parts[k].imag
+        X[start:start + n, 3 * k: 3 * k + 2] = uv[start:start + n]
         X[start:start + n, 3 * k + 2] = 1.0
         start += n
-    mom = np.column_stack((p.real, p.imag))
-    mom = np.column_stack((np.ones(len(p)), mom, mom * mom, mom[:, 0] * mom[:, 1]))  # 1, u, v, u², v², uv
+    mom = np.empty((len(p), 6))                               # 1, u, v, u², v², uv
+    mom[:, 0] = 1.0
+    mom[:, 1:3] = uv
+    np.multiply(uv, uv, out=mom[:, 3:5])
+    np.multiply(uv[:, 0], uv[:, 1], out=mom[:, 5])
     group_base = np.repeat(2 * np.arange(K), counts)  # the left side of view k is group 2k
     ids = np.arange(2 * K)[:, None]
     c = [0j] * K                                               # the axis's point beside the cap (about the cap)
