@@ -108,12 +108,14 @@ def detect_fingertip(mask: np.ndarray, r: float, config: FingertipConfig = Finge
 
 
 def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = FingertipConfig(),
-                      *, prior_uv=None, max_tips: int = 4) -> list[Fingertip]:
+                      *, prior_uv=None, max_tips: int = 4, origin=(0, 0)) -> list[Fingertip]:
     """All separate fingertip candidates (best first), at most ``max_tips``.
 
     Candidates are grouped: after the best one, candidates within ``2·r2`` of it are dropped, and
     so on. Order: score (the paper's), then distance to ``prior_uv`` when given, else distance
     from the skin centroid of the mask, farthest first (an extended finger is the hand's extremity).
+    ``origin``: the image pixel of the mask's pixel (0, 0), for a mask of a region of an image;
+    ``prior_uv`` and the pixels returned are then the image's.
     """
     ri = max(1, int(round(r)))
     r2 = max(ri + 1, int(round(r + config.delta_r_frac * r)))
@@ -128,17 +130,15 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
         x1, y1 = min(mask.shape[1], bx + bw + r2), min(mask.shape[0], by + bh + r2)
         if (x0, y0) != (0, 0) or (x1, y1) != mask.shape[::-1]:
             mask = np.ascontiguousarray(mask[y0:y1, x0:x1])
-            prior_uv = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64) - (x0, y0)
-    tips = _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area)
-    if x0 or y0:
-        for tip in tips:
-            tip.uv = tip.uv + (x0, y0)
-            tip.uv_pixel = tip.uv_pixel + (x0, y0)
-    return tips
+    ox, oy = origin
+    prior = None if prior_uv is None else ((float(prior_uv[0]) - ox) - x0, (float(prior_uv[1]) - oy) - y0)
+    return _detect(mask, r, config, prior, max_tips, ri, r2, disk, area, (x0, y0, ox, oy))
 
 
-def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fingertip]:
-    """:func:`detect_fingertips` on a mask cropped to its skin (plus ``r2``), in its coordinates."""
+def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area, shift) -> list[Fingertip]:
+    """:func:`detect_fingertips` on a mask cropped to its skin (plus ``r2``), ``prior_uv`` in its
+    coordinates; ``shift = (x0, y0, ox, oy)``: the crop's corner in the mask given and that mask's
+    origin, added in turn to the pixels returned."""
     h, w = mask.shape
     if h < 2 * r2 + 1 or w < 2 * r2 + 1:
         return []
@@ -173,7 +173,7 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
         if found is None:
             return []
         k, ring_k = found
-        return _tips(mask, r, config, r2, xs[k: k + 1], ys[k: k + 1], ring_k[None], float(area), None, [0])
+        return _tips(mask, r, config, r2, xs[k: k + 1], ys[k: k + 1], ring_k[None], float(area), None, [0], shift)
 
     def ring_test(xs, ys):
         ring = flat[(ys * w + xs)[:, None] + off_flat] > 0  # (M, 8 r2)
@@ -215,7 +215,7 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
             if len(chosen) >= max_tips:
                 break
             alive &= (xs - xs[k]) ** 2 + (ys - ys[k]) ** 2 > (2 * r2) ** 2
-    return _tips(mask, r, config, r2, xs, ys, ring, score, ext, chosen)
+    return _tips(mask, r, config, r2, xs, ys, ring, score, ext, chosen, shift)
 
 
 def _nearest_candidate(flat, xs, ys, w, off_flat, n_half, r2, config, prior_uv):
@@ -239,22 +239,32 @@ def _nearest_candidate(flat, xs, ys, w, off_flat, n_half, r2, config, prior_uv):
     return None
 
 
-def _tips(mask, r, config, r2, xs, ys, ring, score, ext, chosen) -> list:
-    """The chosen candidates as :class:`Fingertip` results, their cap circles fitted (``config.refine``)."""
+def _tips(mask, r, config, r2, xs, ys, ring, score, ext, chosen, shift) -> list:
+    """The chosen candidates as :class:`Fingertip` results, their cap circles fitted (``config.refine``);
+    ``shift``: as :func:`_detect`'s (each offset added in turn, as floats: the same sums however the
+    mask was cropped)."""
     # direction into the finger: the mean offset of each tip's skin ring pixels (sums of small
     # integers: exact in any order)
     ring_k = ring[chosen]
     d_all = ((ring_k @ _ring_offsets_f(r2)) / ring_k.sum(axis=1)[:, None]).tolist()
-    tips = []
-    for (dx, dy), k in zip(d_all, chosen):
-        p = np.array([xs[k], ys[k]], dtype=np.float64)
+    corners = [(int(xs[k]), int(ys[k])) for k in chosen]
+    dirs = []
+    for dx, dy in d_all:
         nd = math.hypot(dx, dy)
-        d = np.array([dx / nd, dy / nd]) if nd > 0 else np.array([0.0, 1.0])
-        tips.append(Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r),
+        dirs.append(np.array([dx / nd, dy / nd]) if nd > 0 else np.array([0.0, 1.0]))
+    fits = _refine_all(mask, corners, dirs, r2) if config.refine else [None] * len(chosen)
+    x0, y0, ox, oy = shift
+    tips = []
+    for k, (px, py), d, fit in zip(chosen, corners, dirs, fits):
+        u, v, cap = float(px), float(py), 0.0
+        if fit is not None:
+            (cu, cv), d, cap = fit
+            u, v = u + cu, v + cv
+        tips.append(Fingertip(True, uv=np.array([(u + x0) + ox, (v + y0) + oy]),
+                              uv_pixel=np.array([float((px + x0) + ox), float((py + y0) + oy)]), direction=d,
+                              radius_px=float(r), cap_radius_px=cap,
                               score=score if isinstance(score, float) else float(score[k]),
                               n_candidates=int(xs.size), extremity_px=0.0 if ext is None else float(ext[k])))
-    if config.refine:
-        _refine_all(mask, tips, r2)
     return tips
 
 
@@ -302,18 +312,19 @@ def _edge_grid(half: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.column_stack([u, v]), mom, u * u + v * v
 
 
-def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
-    """Sub-pixel cap circles of the chosen candidates, all at once. Per candidate: the mask's edge
-    crossings in a window of half-side ``r2 + 4`` around its pixel, the finger's direction
-    (:func:`_finger_directions`), then twice a circle through the crossings in front of the
+def _refine_all(mask: np.ndarray, corners: list, directions: list, r2: int) -> list:
+    """Sub-pixel cap circles of the candidates at the whole pixels ``corners`` [(x, y), ...] (the
+    ring's ``directions`` as the fallback of :func:`_finger_directions`), all at once: per candidate
+    ``((cx, cy), direction, radius)`` with the centre relative to its pixel, or None. Per candidate:
+    the mask's edge crossings in a window of half-side ``r2 + 4`` around its pixel, the finger's
+    direction (:func:`_finger_directions`), then twice a circle through the crossings in front of the
     current centre (within ``r2 + 2.5`` of it). Each round fits every candidate from one product of
     the selected crossings with their moments (:func:`_kasa`). A candidate whose fit fails, moves
-    its centre over ``r2 + 1`` px or grows over ``2·r2 + 2`` px keeps its pixel."""
+    its centre over ``r2 + 1`` px or grows over ``2·r2 + 2`` px keeps its pixel (None)."""
     h, w = mask.shape
     half = r2 + 4
     grid, mom, grid_r2 = _edge_grid(half)
-    K = len(tips)
-    corners = [(int(t.uv_pixel[0]), int(t.uv_pixel[1])) for t in tips]  # whole pixels
+    K = len(corners)
     inside = all(half <= x < w - half and half <= y < h - half for x, y in corners)
     if inside and K == 1:  # the tracked case: one window, a slice
         x, y = corners[0]
@@ -336,7 +347,7 @@ def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
             ev &= ok[:, 1:, :] & ok[:, :-1, :]
         kk, nn = np.nonzero(np.concatenate([eh.reshape(K, -1), ev.reshape(K, -1)], axis=1))
     g, m = grid[nn], mom[nn]                                             # the crossings, by candidate
-    D = _finger_directions(mask, corners, r2 + 2, [t.direction for t in tips], inside=inside)
+    D = _finger_directions(mask, corners, r2 + 2, directions, inside=inside)
     if K > 1:
         Dk = D[kk]
         split = (kk == np.arange(K)[:, None]).astype(np.float64)        # (K, M): which crossings are whose
@@ -365,11 +376,7 @@ def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
                 continue
             C[k] = fit[:2]
             radius[k] = fit[2]
-    for k, tip in enumerate(tips):
-        if alive[k]:
-            tip.uv = tip.uv_pixel + C[k]
-            tip.direction = D[k]
-            tip.cap_radius_px = radius[k]
+    return [(C[k].tolist(), D[k], radius[k]) if alive[k] else None for k in range(K)]
 
 
 def _kasa(n, su, sv, suu, suv, svv, suuu, suuv, suvv, svvv):

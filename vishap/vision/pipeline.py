@@ -530,15 +530,13 @@ class VisionPipeline:
         mask, org = seg.segment_region(image, roi, pad=pad)
         self._skin_px[side] = mask  # counted by _finger_gone, when a frame finds no fingertip
         td = time.perf_counter()
-        prior = None if pred is None or mode == "recheck" else pred - org
+        prior = None if mode == "recheck" else pred
         n_max = 1 if mode == "tracked" else cfg.max_candidates
-        if mode != "full" or self._z is not None:
-            tips = detect_fingertips(mask, self.K / z, cfg.fingertip, prior_uv=prior, max_tips=n_max)
+        if mode != "full" or self._z is not None:  # (image pixels from here on)
+            tips = detect_fingertips(mask, self.K / z, cfg.fingertip, prior_uv=prior, max_tips=n_max, origin=org)
         else:  # first acquisition, depth unknown: candidates at each depth of the working range
-            tips = search_tips(mask, [self.K / zz for zz in (z, *cfg.z_search_m)], cfg.fingertip, prior_uv=prior,
-                               max_tips=n_max)
-        for tip in tips:  # image pixels from here on
-            tip.uv = tip.uv + org
+            tips = search_tips(mask, [self.K / zz for zz in (z, *cfg.z_search_m)], cfg.fingertip, origin=org,
+                               prior_uv=prior, max_tips=n_max)
         if window is not None and tips:
             tips = self._keep_track_measurement(tips, image, seg, window, pred, z)
         if not tips and mode == "tracked" and cfg.full_search_on_miss:
