@@ -230,8 +230,8 @@ def _nearest_candidate(flat, xs, ys, w, off_flat, n_half, r2, config, prior_uv):
     for k in range(0, order.size, 32):
         sel = order[k: k + 32]
         ring = flat[at[sel][:, None] + off_flat] > 0  # (M, 8 r2)
-        s_square = ring.sum(axis=1)
-        ok = (s_square >= lo) & (s_square <= hi) & ((ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
+        s_square = _row_sums(ring)
+        ok = (s_square >= lo) & (s_square <= hi) & (_row_sums(ring[:, :n_half] & ring[:, n_half:])
                                                     <= config.max_diagonal_pairs)
         j = int(ok.argmax())
         if ok[j]:
@@ -246,7 +246,7 @@ def _tips(mask, r, config, r2, xs, ys, ring, score, ext, chosen, shift) -> list:
     # direction into the finger: the mean offset of each tip's skin ring pixels (sums of small
     # integers: exact in any order)
     ring_k = ring[chosen]
-    d_all = ((ring_k @ _ring_offsets_f(r2)) / ring_k.sum(axis=1)[:, None]).tolist()
+    d_all = ((ring_k @ _ring_offsets_f(r2)) / _row_sums(ring_k)[:, None]).tolist()
     corners = [(int(xs[k]), int(ys[k])) for k in chosen]
     dirs = []
     for dx, dy in d_all:
@@ -329,7 +329,7 @@ def _refine_all(mask: np.ndarray, corners: list, directions: list, r2: int) -> l
     if inside and K == 1:  # the tracked case: one window, a slice
         x, y = corners[0]
         win = mask[y - half: y + half + 1, x - half: x + half + 1] > 0
-        nn = np.flatnonzero(np.concatenate([(win[:, 1:] != win[:, :-1]).ravel(), (win[1:] != win[:-1]).ravel()]))
+        nn = np.concatenate([(win[:, 1:] != win[:, :-1]).ravel(), (win[1:] != win[:-1]).ravel()]).nonzero()[0]
         kk = None
     else:
         pi = np.array(corners, dtype=np.intp)
@@ -404,6 +404,11 @@ def _kasa(n, su, sv, suu, suv, svv, suuu, suuv, suvv, svvv):
 
 
 _ONES2 = np.ones(2)  # row sums of (N, 2) products by one small matrix product
+
+
+def _row_sums(a: np.ndarray) -> np.ndarray:
+    """``a.sum(axis=1)`` without ndarray.sum's Python layer (a few calls per tracked view)."""
+    return np.add.reduce(a, axis=1)
 _ANGLES = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
 _UNIT = np.column_stack([np.cos(_ANGLES), np.sin(_ANGLES)])
 

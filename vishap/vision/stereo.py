@@ -394,7 +394,7 @@ def _unrectify_point(rig: StereoRig, u: float, v: float, side: str) -> np.ndarra
     for a view without distortion (two per refined pair: the arrays' overhead was most of their cost)."""
     K, d, Rr, P = ((rig.K_left, rig.dist_left, rig.R1, rig.P1) if side == "left"
                    else (rig.K_right, rig.dist_right, rig.R2, rig.P2))
-    if d.any() or K[0, 1] != 0.0:
+    if np.count_nonzero(d) or K[0, 1] != 0.0:
         return _unrectify_points(rig, (u, v), side)[0]
     (p00, _, p02, _), (_, p11, p12, _), _ = P.tolist()
     (k00, _, k02), (_, k11, k12), _ = K.tolist()
