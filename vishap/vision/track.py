@@ -92,7 +92,7 @@ class KalmanCV:
             return
         d = self.dim
         z = np.asarray(z, dtype=np.float64).reshape(d)
-        if not np.all(np.isfinite(z)):
+        if not all(map(math.isfinite, z.tolist())):
             raise ShapeError("z: measurement contains NaN or inf")
         # H = [I 0]: H x, H P Hᵀ and P Hᵀ are slices
         self.y = z - self.x[:d]
