@@ -88,7 +88,7 @@ def triangulate_rectified_tip(rig: StereoRig, rl, rr, config: StereoConfig = Ste
     R1 = rig.R1
     if not covariance:
         return StereoPoint(True, p_cam=R1.T @ p_rect, disparity_px=disp, epipolar_px=epi, rect=(rl, rr))
-    J_p = (rig.Q[:3, :3] - np.outer(p_rect, rig.Q[3, :3])) / hom[3]  # dp/d(u, v, d)
+    J_p = (rig.Q[:3, :3] - p_rect[:, None] * rig.Q[3, :3]) / hom[3]  # dp/d(u, v, d) (the outer product)
     J = J_p @ _J_S
     cov_rect = (config.sigma_px ** 2) * (J @ J.T)
     p_cam = R1.T @ p_rect
