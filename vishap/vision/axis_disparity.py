@@ -104,7 +104,7 @@ def axis_lines(rig: StereoRig, views, *, from_radii: float, to_radii: float, max
     np.multiply(uv, uv, out=mom[:, 3:5])
     np.multiply(uv[:, 0], uv[:, 1], out=mom[:, 5])
     even, ids = (_EVEN[:K], _IDS[:2 * K]) if K <= len(_EVEN) else (2 * np.arange(K), np.arange(2 * K)[:, None])
-    group_base = np.repeat(even, counts)  # the left side of view k is group 2k
+    group_base = even.repeat(counts)  # the left side of view k is group 2k
     c = [0j] * K                                               # the axis's point beside the cap (about the cap)
     d = [s[1] for s in seeds]                                  # unit direction into the finger
     keep = None
@@ -124,7 +124,7 @@ def axis_lines(rig: StereoRig, views, *, from_radii: float, to_radii: float, max
         group = group_base + right                             # left side of view k: 2k, right side: 2k + 1
         sel = (group == ids) & use                             # (2K, N)
         S = (sel @ mom).tolist()
-        reach = (sel * along).max(axis=1).tolist()
+        reach = np.maximum.reduce(sel * along, axis=1).tolist()
         means = []
         for k in range(K):
             sl, sr = S[2 * k], S[2 * k + 1]

@@ -224,7 +224,7 @@ def _nearest_candidate(flat, xs, ys, w, off_flat, n_half, r2, config, prior_uv):
     ones), so candidates are tested in order of distance, a chunk at a time, up to the first valid
     one: ``(its index, its ring of skin flags)``, or None."""
     d2 = (xs - float(prior_uv[0])) ** 2 + (ys - float(prior_uv[1])) ** 2
-    order = np.argsort(d2, kind="stable")
+    order = d2.argsort(kind="stable")
     at = ys * w + xs
     lo, hi = config.ring_min * r2, config.ring_max * r2
     for k in range(0, order.size, 32):
@@ -425,6 +425,13 @@ def _circle_offsets(rho: int) -> tuple[np.ndarray, np.ndarray] | None:
     return q[:, 0].copy(), q[:, 1].copy()
 
 
+@lru_cache(maxsize=256)
+def _circle_flat(rho: int, width: int) -> np.ndarray:
+    """:func:`_circle_offsets` (which must exist) as offsets into a flattened mask ``width`` pixels wide."""
+    dx, dy = _circle_offsets(rho)
+    return dy * width + dx
+
+
 def _finger_directions(mask: np.ndarray, corners, rho: int, fallback, *, inside: bool = False) -> np.ndarray:
     """Unit vectors from the whole pixels ``corners`` [(x, y), ...] into the finger: the mean
     direction of the skin samples on a circle of radius ``rho`` around each (``fallback[k]`` where
@@ -433,7 +440,7 @@ def _finger_directions(mask: np.ndarray, corners, rho: int, fallback, *, inside:
     circle = _circle_offsets(rho) if inside else None
     if circle is not None and len(corners) == 1:
         x, y = corners[0]
-        skin = (mask[y + circle[1], x + circle[0]] > 0)[None]
+        skin = (mask.ravel()[_circle_flat(rho, w) + (y * w + x)] > 0)[None]
     elif circle is not None:
         P = np.array(corners, dtype=np.intp)
         skin = mask[P[:, 1:] + circle[1], P[:, :1] + circle[0]] > 0     # (K, 64)
