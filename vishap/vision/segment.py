@@ -105,12 +105,26 @@ def _n_bins(cfg: SegmentConfig) -> int:
 
 class _TileIndex:
     """``tile_index * n_bins`` of a region's pixels as a row and a column term (cached per size;
-    their sum is the index image)."""
+    their sum is the index image), and that sum itself for regions up to ``_BASE_MAX_PX`` (a
+    tracking window: one addition of the bins per window instead of two)."""
 
     def __init__(self, tile: int, nb: int):
         self.tile, self.nb = tile, nb
         self._rows: dict = {}
         self._cols: dict = {}
+        self._base: dict = {}
+
+    def base(self, h: int, w: int) -> np.ndarray | None:
+        """``rows + cols`` of an h×w region, or None for a large one."""
+        if h * w > _BASE_MAX_PX:
+            return None
+        b = self._base.get((h, w))
+        if b is None:
+            if len(self._base) >= 256:  # (window sizes vary; keep the cache bounded)
+                self._base.clear()
+            rows, cols, _, _ = self.get(h, w)
+            b = self._base[(h, w)] = rows + cols
+        return b
 
     def get(self, h: int, w: int) -> tuple[np.ndarray, np.ndarray, int, int]:
         t = self.tile
@@ -124,12 +138,20 @@ class _TileIndex:
         return rows, cols, ty, tx
 
 
+_BASE_MAX_PX = 160 * 160
+
+
 def tile_histograms(bin_image: np.ndarray, tile: int, n_bins: int, _index: _TileIndex | None = None) -> np.ndarray:
     """All tile histograms of a bin image: (tiles_y, tiles_x, n_bins) int64, from one bincount."""
     h, w = bin_image.shape
-    rows, cols, ty, tx = (_index or _TileIndex(tile, n_bins)).get(h, w)
-    idx = cols + bin_image
-    idx += rows
+    index = _index or _TileIndex(tile, n_bins)
+    rows, cols, ty, tx = index.get(h, w)
+    base = index.base(h, w)
+    if base is not None:
+        idx = base + bin_image
+    else:
+        idx = cols + bin_image
+        idx += rows
     return np.bincount(idx.ravel(), minlength=ty * tx * n_bins).reshape(ty, tx, n_bins)
 
 
