@@ -63,13 +63,41 @@ def test_prior_breaks_ties_and_fill_ratio_variant():
 
 
 def test_nearest_first_search_gives_the_full_search_result():
+    """A tracking window's search (one tip near a prior: candidates tested nearest first, no palm
+    erosion) returns exactly the full search's best candidate, also beside a palm (candidates whose
+    whole square is skin) and with the first valid candidate several chunks of 32 away."""
+    import cv2
+
     import vishap.vision.fingertip as F
 
     m = np.maximum(capsule((40, 40), 0.3, 8), capsule((40, 112), -0.2, 8))
-    for prior in ((38, 41), (44, 109), (80, 80)):
-        fast = detect_fingertip(m, 4.8, prior_uv=prior)
-        full = F.detect_fingertips(m, 4.8, prior_uv=prior, max_tips=2)[0]  # no shortcut with 2 tips
-        assert fast.found and np.allclose(fast.uv_pixel, full.uv_pixel) and np.allclose(fast.uv, full.uv)
+    palm = m.copy()
+    cv2.circle(palm, (110, 110), 30, 255, -1)
+    for mask, priors in ((m, ((38, 41), (44, 109), (80, 80))), (palm, ((40, 40), (112.3, 108.6), (140.5, 70.2)))):
+        for prior in priors:
+            fast = detect_fingertip(mask, 4.8, prior_uv=prior)
+            full = F.detect_fingertips(mask, 4.8, prior_uv=prior, max_tips=2)[0]  # no shortcut with 2 tips
+            assert fast.found and np.array_equal(fast.uv_pixel, full.uv_pixel) and np.array_equal(fast.uv, full.uv)
+            # (the direction's sums run in another order for one tip than for two: the last bit may differ)
+            assert np.allclose(fast.direction, full.direction, rtol=0, atol=1e-14)
+            assert fast.cap_radius_px == full.cap_radius_px
+
+
+def test_origin_gives_the_image_pixels_of_a_region():
+    """A region's mask with its origin: the tips of the region plus the origin, to the last bit
+    (the offsets are added as before, one after the other)."""
+    import vishap.vision.fingertip as F
+
+    m = capsule((61.3, 47.8), 0.4, 8.0)
+    origin = (215, 130)
+    for prior, n in (((60.0, 49.0), 1), (None, 2)):
+        local = F.detect_fingertips(m, 4.8, prior_uv=prior, max_tips=n)
+        image = F.detect_fingertips(m, 4.8, prior_uv=None if prior is None else np.add(prior, origin), max_tips=n,
+                                    origin=origin)
+        assert len(local) == len(image) >= 1
+        for a, b in zip(local, image):
+            assert np.array_equal(a.uv + origin, b.uv) and np.array_equal(a.uv_pixel + origin, b.uv_pixel)
+            assert a.cap_radius_px == b.cap_radius_px > 0
 
 
 def test_integral_image_prefilter_keeps_the_same_candidates(monkeypatch):

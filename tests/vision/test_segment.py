@@ -101,6 +101,21 @@ def test_sparse_tiles_give_exactly_the_dense_mask(toy, cfg):
         assert a.any() and np.array_equal(a, b)
 
 
+def test_hue_and_gate_read_as_one_index_give_the_same_mask(toy):
+    """The hue-interval skin test reads its table and the histogram bins at ``hue | not chromatic``:
+    the same masks as the hue table and the gate applied apart (dense window and sparse frame)."""
+    bg, fr, skin = toy
+    fast = Segmenter(skin)
+    plain = Segmenter(skin)
+    plain._skin_v = plain._bin_v = None
+    for seg in (fast, plain):
+        seg.learn([f.left for f in bg])
+    assert fast._skin_v is not None
+    for roi in (None, (150, 100, 220, 170), (60, 40, 260, 200)):
+        a, b = fast.segment(fr.left, roi), plain.segment(fr.left, roi)
+        assert a.any() and np.array_equal(a, b)
+
+
 @pytest.mark.parametrize("coarse", [2, 4])
 def test_coarse_skin_pass_gives_the_same_mask(toy, coarse):
     import cv2

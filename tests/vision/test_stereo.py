@@ -27,6 +27,22 @@ def test_covariance_matches_monte_carlo(ideal_rig, rng):
     assert np.allclose(np.sqrt(np.diag(emp)), np.sqrt(np.diag(model)), rtol=0.1)
 
 
+def test_covariance_added_later_is_the_same(distorted_rig):
+    """A pair checked without its covariance gets, from with_covariance, the floats a plain
+    triangulation gives; a point with one, or a failed one, is returned as it is."""
+    from vishap.vision.stereo import triangulate_rectified_tip, with_covariance
+
+    rl, rr = np.array([352.25, 261.125]), np.array([301.5, 261.5])
+    full = triangulate_rectified_tip(distorted_rig, rl, rr)
+    bare = triangulate_rectified_tip(distorted_rig, rl, rr, covariance=False)
+    assert bare.ok and bare.cov_cam is None and np.array_equal(bare.p_cam, full.p_cam)
+    later = with_covariance(distorted_rig, bare)
+    assert np.array_equal(later.p_cam, full.p_cam) and np.array_equal(later.cov_cam, full.cov_cam)
+    assert with_covariance(distorted_rig, full) is full
+    bad = triangulate_rectified_tip(distorted_rig, rl, rr + (0, 9.0), covariance=False)
+    assert not bad.ok and with_covariance(distorted_rig, bad) is bad
+
+
 def test_epipolar_and_disparity_checks(ideal_rig):
     p = np.array([0.0, 0.0, 0.6])
     uv_l, uv_r = ideal_rig.project(p)

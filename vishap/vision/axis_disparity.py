@@ -89,19 +89,22 @@ def axis_lines(rig: StereoRig, views, *, from_radii: float, to_radii: float, max
     K = len(views)
     counts = [len(q) for q in parts]
     p = np.concatenate(parts)                                 # each view's points about its cap centre
+    uv = p.view(np.float64).reshape(-1, 2)                    # … as (u, v) rows
     # each point as (u, v, 1) in its view's block of three columns: one product maps every point
     # into its own view's axis frame
     X = np.zeros((len(p), 3 * K))
     start = 0
     for k, n in enumerate(counts):
-        X[start:start + n, 3 * k] = parts[k].real
-        X[start:start + n, 3 * k + 1] = parts[k].imag
+        X[start:start + n, 3 * k: 3 * k + 2] = uv[start:start + n]
         X[start:start + n, 3 * k + 2] = 1.0
         start += n
-    mom = np.column_stack((p.real, p.imag))
-    mom = np.column_stack((np.ones(len(p)), mom, mom * mom, mom[:, 0] * mom[:, 1]))  # 1, u, v, u², v², uv
-    group_base = np.repeat(2 * np.arange(K), counts)  # the left side of view k is group 2k
-    ids = np.arange(2 * K)[:, None]
+    mom = np.empty((len(p), 6))                               # 1, u, v, u², v², uv
+    mom[:, 0] = 1.0
+    mom[:, 1:3] = uv
+    np.multiply(uv, uv, out=mom[:, 3:5])
+    np.multiply(uv[:, 0], uv[:, 1], out=mom[:, 5])
+    even, ids = (_EVEN[:K], _IDS[:2 * K]) if K <= len(_EVEN) else (2 * np.arange(K), np.arange(2 * K)[:, None])
+    group_base = even.repeat(counts)  # the left side of view k is group 2k
     c = [0j] * K                                               # the axis's point beside the cap (about the cap)
     d = [s[1] for s in seeds]                                  # unit direction into the finger
     keep = None
@@ -121,7 +124,7 @@ def axis_lines(rig: StereoRig, views, *, from_radii: float, to_radii: float, max
         group = group_base + right                             # left side of view k: 2k, right side: 2k + 1
         sel = (group == ids) & use                             # (2K, N)
         S = (sel @ mom).tolist()
-        reach = (sel * along).max(axis=1).tolist()
+        reach = np.maximum.reduce(sel * along, axis=1).tolist()
         means = []
         for k in range(K):
             sl, sr = S[2 * k], S[2 * k + 1]
@@ -151,7 +154,7 @@ def axis_lines(rig: StereoRig, views, *, from_radii: float, to_radii: float, max
                 dk = d[k]
                 B += [-dk.imag, dk.real, 0.0]
                 off += [(means[k][0] * dk.conjugate()).imag, (means[k][1] * dk.conjugate()).imag]
-            keep = np.abs(X @ np.array(B) - np.take(off, group)) <= max_residual_px
+            keep = np.abs(X @ np.array(B) - np.array(off)[group]) <= max_residual_px
     out = []
     cos_tilt = math.cos(math.radians(max_tilt_deg))
     for k in range(K):
@@ -166,6 +169,10 @@ def axis_lines(rig: StereoRig, views, *, from_radii: float, to_radii: float, max
                             math.sqrt(max(res2, 0.0) / (nl + nr)), sv / (nl + nr) + cap.imag,
                             np.array([cap.real, cap.imag])))
     return out
+
+
+_EVEN = 2 * np.arange(8)      # a view's first group (its left side), for up to 8 views
+_IDS = np.arange(16)[:, None]  # the groups, as a column
 
 
 def _side_points(rig: StereoRig, side: str, mask: np.ndarray, origin, tip, to_radii: float, width_tol: float,
@@ -207,8 +214,8 @@ def _inner_crossings(crop: np.ndarray) -> np.ndarray:
     b = crop > 0
     h, w = b.shape
     gh, gv = _crossing_grids(w, 1 << max(h - 1, 31).bit_length())
-    return np.concatenate((gh[np.flatnonzero(b[1:-1, 1:] != b[1:-1, :-1])],
-                           gv[np.flatnonzero(b[1:, 1:-1] != b[:-1, 1:-1])]))
+    return np.concatenate((gh[(b[1:-1, 1:] != b[1:-1, :-1]).ravel().nonzero()[0]],
+                           gv[(b[1:, 1:-1] != b[:-1, 1:-1]).ravel().nonzero()[0]]))
 
 
 @lru_cache(maxsize=512)

@@ -108,12 +108,14 @@ def detect_fingertip(mask: np.ndarray, r: float, config: FingertipConfig = Finge
 
 
 def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = FingertipConfig(),
-                      *, prior_uv=None, max_tips: int = 4) -> list[Fingertip]:
+                      *, prior_uv=None, max_tips: int = 4, origin=(0, 0)) -> list[Fingertip]:
     """All separate fingertip candidates (best first), at most ``max_tips``.
 
     Candidates are grouped: after the best one, candidates within ``2·r2`` of it are dropped, and
     so on. Order: score (the paper's), then distance to ``prior_uv`` when given, else distance
     from the skin centroid of the mask, farthest first (an extended finger is the hand's extremity).
+    ``origin``: the image pixel of the mask's pixel (0, 0), for a mask of a region of an image;
+    ``prior_uv`` and the pixels returned are then the image's.
     """
     ri = max(1, int(round(r)))
     r2 = max(ri + 1, int(round(r + config.delta_r_frac * r)))
@@ -128,46 +130,50 @@ def detect_fingertips(mask: np.ndarray, r: float, config: FingertipConfig = Fing
         x1, y1 = min(mask.shape[1], bx + bw + r2), min(mask.shape[0], by + bh + r2)
         if (x0, y0) != (0, 0) or (x1, y1) != mask.shape[::-1]:
             mask = np.ascontiguousarray(mask[y0:y1, x0:x1])
-            prior_uv = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64) - (x0, y0)
-    tips = _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area)
-    if x0 or y0:
-        for tip in tips:
-            tip.uv = tip.uv + (x0, y0)
-            tip.uv_pixel = tip.uv_pixel + (x0, y0)
-    return tips
+    ox, oy = origin
+    prior = None if prior_uv is None else ((float(prior_uv[0]) - ox) - x0, (float(prior_uv[1]) - oy) - y0)
+    return _detect(mask, r, config, prior, max_tips, ri, r2, disk, area, (x0, y0, ox, oy))
 
 
-def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fingertip]:
-    """:func:`detect_fingertips` on a mask cropped to its skin (plus ``r2``), in its coordinates."""
+def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area, shift) -> list[Fingertip]:
+    """:func:`detect_fingertips` on a mask cropped to its skin (plus ``r2``), ``prior_uv`` in its
+    coordinates; ``shift = (x0, y0, ox, oy)``: the crop's corner in the mask given and that mask's
+    origin, added in turn to the pixels returned."""
     h, w = mask.shape
     if h < 2 * r2 + 1 or w < 2 * r2 + 1:
         return []
     # steps 1, 4, 5: whole circle is skin; outside the mask counts as non-skin.
-    # Shortcut (exact): a pixel whose whole square of half-side r2 is skin has S_square = 8·r2,
-    # which step 7 rejects, so those pixels (a palm's interior) are dropped before gathering.
-    inner = cv2.erode(mask, _rect(r2), borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    nearest = prior_uv is not None and max_tips == 1 and config.fill_ratio >= 1.0
     if config.fill_ratio >= 1.0:
-        filled = cv2.erode(mask, disk, borderType=cv2.BORDER_CONSTANT, borderValue=0)
-        cand = cv2.subtract(filled, inner)
+        cand = cv2.erode(mask, disk, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+        if not nearest:
+            # Shortcut (exact): a pixel whose whole square of half-side r2 is skin has S_square = 8·r2,
+            # which step 7 rejects, so those pixels (a palm's interior) are dropped before gathering
+            # (the nearest-first search below tests few candidates and needs no second erosion)
+            cand = cv2.subtract(cand, cv2.erode(mask, _rect(r2), borderType=cv2.BORDER_CONSTANT, borderValue=0))
         scores = None
     else:
+        inner = cv2.erode(mask, _rect(r2), borderType=cv2.BORDER_CONSTANT, borderValue=0)
         cnt = cv2.filter2D((mask > 0).astype(np.float32), -1, disk.astype(np.float32),
                            borderType=cv2.BORDER_CONSTANT)
         cand = ((cnt >= config.fill_ratio * area - 1e-3) & (mask > 0) & (inner == 0)).view(np.uint8)
         scores = cnt
-    cand[:r2] = 0
-    cand[h - r2:] = 0
-    cand[:, :r2] = 0
-    cand[:, w - r2:] = 0
-    pts = cv2.findNonZero(cand)
+    # candidates lie r2 inside the mask (their square within it)
+    pts = cv2.findNonZero(cand[r2:h - r2, r2:w - r2])
     if pts is None:
         return []
     pts = pts.reshape(-1, 2)
-    xs = pts[:, 0].astype(np.intp)
-    ys = pts[:, 1].astype(np.intp)
+    xs = pts[:, 0] + r2
+    ys = pts[:, 1] + r2
     # steps 6–9 on the square ring
     n_half = 4 * r2
-    flat, off_flat = mask.ravel(), _flat_offsets(r2, w)  # candidates lie r2 inside the mask
+    flat, off_flat = mask.ravel(), _flat_offsets(r2, w)
+    if nearest:
+        found = _nearest_candidate(flat, xs, ys, w, off_flat, n_half, r2, config, prior_uv)
+        if found is None:
+            return []
+        k, ring_k = found
+        return _tips(mask, r, config, r2, xs[k: k + 1], ys[k: k + 1], ring_k[None], float(area), None, [0], shift)
 
     def ring_test(xs, ys):
         ring = flat[(ys * w + xs)[:, None] + off_flat] > 0  # (M, 8 r2)
@@ -175,35 +181,21 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
         n_diag = (ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
         keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2) \
             & (n_diag <= config.max_diagonal_pairs)
-        return xs[keep], ys[keep], ring[keep], keep
+        return xs[keep], ys[keep], ring[keep]
 
-    ref = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64)
-    tie = None
-    if prior_uv is not None and max_tips == 1 and scores is None and xs.size > 48:
-        # equal scores: the winner is the valid candidate nearest the prior, so test candidates in
-        # order of distance, a chunk at a time, and stop at the first chunk holding a valid one
-        d2 = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
-        order = np.argsort(d2, kind="stable")
-        for k in range(0, order.size, 32):
-            sel = order[k: k + 32]
-            cx, cy, cring, keep = ring_test(xs[sel], ys[sel])
-            if cx.size:
-                break
-        xs, ys, ring, tie = cx, cy, cring, d2[sel][keep]  # (the distances of step 10, already known)
-    else:
-        if xs.size > _PREFILTER_MIN:  # many candidates (full frame): S_square of all from an integral image first
-            ii = cv2.integral(cv2.threshold(mask, 0, 1, cv2.THRESH_BINARY)[1])
-            s_square = _box_sum(ii, xs, ys, r2) - _box_sum(ii, xs, ys, r2 - 1)
-            keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2)
-            xs, ys = xs[keep], ys[keep]
-        xs, ys, ring, _ = ring_test(xs, ys)
+    if xs.size > _PREFILTER_MIN:  # many candidates (full frame): S_square of all from an integral image first
+        ii = cv2.integral(cv2.threshold(mask, 0, 1, cv2.THRESH_BINARY)[1])
+        s_square = _box_sum(ii, xs, ys, r2) - _box_sum(ii, xs, ys, r2 - 1)
+        keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2)
+        xs, ys = xs[keep], ys[keep]
+    xs, ys, ring = ring_test(xs, ys)
     if xs.size == 0:
         return []
     score = float(area) if scores is None else scores[ys, xs].astype(np.float64)  # (scalar: all equal)
     # step 10: best score first; ties broken by the prior or by extremity
     if prior_uv is not None:
-        if tie is None:
-            tie = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
+        ref = np.asarray(prior_uv, dtype=np.float64)
+        tie = (xs - ref[0]) ** 2 + (ys - ref[1]) ** 2
         ext = None                  # (extremity not measured: 0)
     else:
         m = cv2.moments(mask, binaryImage=True)
@@ -223,20 +215,56 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area) -> list[Fin
             if len(chosen) >= max_tips:
                 break
             alive &= (xs - xs[k]) ** 2 + (ys - ys[k]) ** 2 > (2 * r2) ** 2
+    return _tips(mask, r, config, r2, xs, ys, ring, score, ext, chosen, shift)
+
+
+def _nearest_candidate(flat, xs, ys, w, off_flat, n_half, r2, config, prior_uv):
+    """Steps 6–9 for one tip near a prior (a tracking window): with every score equal the winner is
+    the valid candidate nearest ``prior_uv`` (the first in the candidates' order among equally near
+    ones), so candidates are tested in order of distance, a chunk at a time, up to the first valid
+    one: ``(its index, its ring of skin flags)``, or None."""
+    d2 = (xs - float(prior_uv[0])) ** 2 + (ys - float(prior_uv[1])) ** 2
+    order = d2.argsort(kind="stable")
+    at = ys * w + xs
+    lo, hi = config.ring_min * r2, config.ring_max * r2
+    for k in range(0, order.size, 32):
+        sel = order[k: k + 32]
+        ring = flat[at[sel][:, None] + off_flat] > 0  # (M, 8 r2)
+        s_square = _row_sums(ring)
+        ok = (s_square >= lo) & (s_square <= hi) & (_row_sums(ring[:, :n_half] & ring[:, n_half:])
+                                                    <= config.max_diagonal_pairs)
+        j = int(ok.argmax())
+        if ok[j]:
+            return int(sel[j]), ring[j]
+    return None
+
+
+def _tips(mask, r, config, r2, xs, ys, ring, score, ext, chosen, shift) -> list:
+    """The chosen candidates as :class:`Fingertip` results, their cap circles fitted (``config.refine``);
+    ``shift``: as :func:`_detect`'s (each offset added in turn, as floats: the same sums however the
+    mask was cropped)."""
     # direction into the finger: the mean offset of each tip's skin ring pixels (sums of small
     # integers: exact in any order)
     ring_k = ring[chosen]
-    d_all = ((ring_k @ _ring_offsets_f(r2)) / ring_k.sum(axis=1)[:, None]).tolist()
-    tips = []
-    for (dx, dy), k in zip(d_all, chosen):
-        p = np.array([xs[k], ys[k]], dtype=np.float64)
+    d_all = ((ring_k @ _ring_offsets_f(r2)) / _row_sums(ring_k)[:, None]).tolist()
+    corners = [(int(xs[k]), int(ys[k])) for k in chosen]
+    dirs = []
+    for dx, dy in d_all:
         nd = math.hypot(dx, dy)
-        d = np.array([dx / nd, dy / nd]) if nd > 0 else np.array([0.0, 1.0])
-        tips.append(Fingertip(True, uv=p.copy(), uv_pixel=p, direction=d, radius_px=float(r),
-                              score=float(score if scores is None else score[k]),
+        dirs.append(np.array([dx / nd, dy / nd]) if nd > 0 else np.array([0.0, 1.0]))
+    fits = _refine_all(mask, corners, dirs, r2) if config.refine else [None] * len(chosen)
+    x0, y0, ox, oy = shift
+    tips = []
+    for k, (px, py), d, fit in zip(chosen, corners, dirs, fits):
+        u, v, cap = float(px), float(py), 0.0
+        if fit is not None:
+            (cu, cv), d, cap = fit
+            u, v = u + cu, v + cv
+        tips.append(Fingertip(True, uv=np.array([(u + x0) + ox, (v + y0) + oy]),
+                              uv_pixel=np.array([float((px + x0) + ox), float((py + y0) + oy)]), direction=d,
+                              radius_px=float(r), cap_radius_px=cap,
+                              score=score if isinstance(score, float) else float(score[k]),
                               n_candidates=int(xs.size), extremity_px=0.0 if ext is None else float(ext[k])))
-    if config.refine:
-        _refine_all(mask, tips, r2)
     return tips
 
 
@@ -284,23 +312,24 @@ def _edge_grid(half: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.column_stack([u, v]), mom, u * u + v * v
 
 
-def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
-    """Sub-pixel cap circles of the chosen candidates, all at once. Per candidate: the mask's edge
-    crossings in a window of half-side ``r2 + 4`` around its pixel, the finger's direction
-    (:func:`_finger_directions`), then twice a circle through the crossings in front of the
+def _refine_all(mask: np.ndarray, corners: list, directions: list, r2: int) -> list:
+    """Sub-pixel cap circles of the candidates at the whole pixels ``corners`` [(x, y), ...] (the
+    ring's ``directions`` as the fallback of :func:`_finger_directions`), all at once: per candidate
+    ``((cx, cy), direction, radius)`` with the centre relative to its pixel, or None. Per candidate:
+    the mask's edge crossings in a window of half-side ``r2 + 4`` around its pixel, the finger's
+    direction (:func:`_finger_directions`), then twice a circle through the crossings in front of the
     current centre (within ``r2 + 2.5`` of it). Each round fits every candidate from one product of
     the selected crossings with their moments (:func:`_kasa`). A candidate whose fit fails, moves
-    its centre over ``r2 + 1`` px or grows over ``2·r2 + 2`` px keeps its pixel."""
+    its centre over ``r2 + 1`` px or grows over ``2·r2 + 2`` px keeps its pixel (None)."""
     h, w = mask.shape
     half = r2 + 4
     grid, mom, grid_r2 = _edge_grid(half)
-    K = len(tips)
-    corners = [(int(t.uv_pixel[0]), int(t.uv_pixel[1])) for t in tips]  # whole pixels
+    K = len(corners)
     inside = all(half <= x < w - half and half <= y < h - half for x, y in corners)
     if inside and K == 1:  # the tracked case: one window, a slice
         x, y = corners[0]
         win = mask[y - half: y + half + 1, x - half: x + half + 1] > 0
-        nn = np.flatnonzero(np.concatenate([(win[:, 1:] != win[:, :-1]).ravel(), (win[1:] != win[:-1]).ravel()]))
+        nn = np.concatenate([(win[:, 1:] != win[:, :-1]).ravel(), (win[1:] != win[:-1]).ravel()]).nonzero()[0]
         kk = None
     else:
         pi = np.array(corners, dtype=np.intp)
@@ -318,7 +347,7 @@ def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
             ev &= ok[:, 1:, :] & ok[:, :-1, :]
         kk, nn = np.nonzero(np.concatenate([eh.reshape(K, -1), ev.reshape(K, -1)], axis=1))
     g, m = grid[nn], mom[nn]                                             # the crossings, by candidate
-    D = _finger_directions(mask, corners, r2 + 2, [t.direction for t in tips], inside=inside)
+    D = _finger_directions(mask, corners, r2 + 2, directions, inside=inside)
     if K > 1:
         Dk = D[kk]
         split = (kk == np.arange(K)[:, None]).astype(np.float64)        # (K, M): which crossings are whose
@@ -347,11 +376,7 @@ def _refine_all(mask: np.ndarray, tips: list, r2: int) -> None:
                 continue
             C[k] = fit[:2]
             radius[k] = fit[2]
-    for k, tip in enumerate(tips):
-        if alive[k]:
-            tip.uv = tip.uv_pixel + C[k]
-            tip.direction = D[k]
-            tip.cap_radius_px = radius[k]
+    return [(C[k].tolist(), D[k], radius[k]) if alive[k] else None for k in range(K)]
 
 
 def _kasa(n, su, sv, suu, suv, svv, suuu, suuv, suvv, svvv):
@@ -379,6 +404,11 @@ def _kasa(n, su, sv, suu, suv, svv, suuu, suuv, suvv, svvv):
 
 
 _ONES2 = np.ones(2)  # row sums of (N, 2) products by one small matrix product
+
+
+def _row_sums(a: np.ndarray) -> np.ndarray:
+    """``a.sum(axis=1)`` without ndarray.sum's Python layer (a few calls per tracked view)."""
+    return np.add.reduce(a, axis=1)
 _ANGLES = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
 _UNIT = np.column_stack([np.cos(_ANGLES), np.sin(_ANGLES)])
 
@@ -395,6 +425,13 @@ def _circle_offsets(rho: int) -> tuple[np.ndarray, np.ndarray] | None:
     return q[:, 0].copy(), q[:, 1].copy()
 
 
+@lru_cache(maxsize=256)
+def _circle_flat(rho: int, width: int) -> np.ndarray:
+    """:func:`_circle_offsets` (which must exist) as offsets into a flattened mask ``width`` pixels wide."""
+    dx, dy = _circle_offsets(rho)
+    return dy * width + dx
+
+
 def _finger_directions(mask: np.ndarray, corners, rho: int, fallback, *, inside: bool = False) -> np.ndarray:
     """Unit vectors from the whole pixels ``corners`` [(x, y), ...] into the finger: the mean
     direction of the skin samples on a circle of radius ``rho`` around each (``fallback[k]`` where
@@ -403,7 +440,7 @@ def _finger_directions(mask: np.ndarray, corners, rho: int, fallback, *, inside:
     circle = _circle_offsets(rho) if inside else None
     if circle is not None and len(corners) == 1:
         x, y = corners[0]
-        skin = (mask[y + circle[1], x + circle[0]] > 0)[None]
+        skin = (mask.ravel()[_circle_flat(rho, w) + (y * w + x)] > 0)[None]
     elif circle is not None:
         P = np.array(corners, dtype=np.intp)
         skin = mask[P[:, 1:] + circle[1], P[:, :1] + circle[0]] > 0     # (K, 64)

@@ -23,7 +23,7 @@ from vishap.vision.rig import StereoRig
 from vishap.vision.segment import SegmentConfig, Segmenter, snap_roi
 from vishap.vision.skin_model import SkinModel
 from vishap.vision.stereo import (RefineConfig, StereoConfig, StereoPoint, refine_tip_pair, triangulate_rectified_tip,
-                                  triangulate_tip)
+                                  triangulate_tip, with_covariance)
 from vishap.vision.track import KalmanCV, TipTracker, TrackerConfig
 from vishap.world.finger import TIP_RADIUS_M
 from vishap.vision.view import search_tips
@@ -235,6 +235,7 @@ class VisionPipeline:
             sp = StereoPoint(False, reason="new fingertip position, not yet confirmed by a second frame")
         self._fix_run = self._fix_run + 1 if sp.ok else 0
         if sp.ok:
+            sp = with_covariance(self.rig, sp, self.config.stereo)  # (the pair checks leave it out)
             self._z = float(sp.p_cam[2])
             self._p3, self._t3 = np.asarray(sp.p_cam, dtype=np.float64), t
             return TipEstimate(t, True, sp.p_cam, sp.cov_cam, found["left"], found["right"], conf, timings, modes["left"])
@@ -289,7 +290,8 @@ class VisionPipeline:
         out = {"left": tl.uv, "right": tr.uv}, sp
         if ref.ok:
             spr = (triangulate_tip(self.rig, ref.uv_left, ref.uv_right, self.config.stereo) if ref.rect_left is None
-                   else triangulate_rectified_tip(self.rig, ref.rect_left, ref.rect_right, self.config.stereo))
+                   else triangulate_rectified_tip(self.rig, ref.rect_left, ref.rect_right, self.config.stereo,
+                                                  covariance=False))
             if spr.ok:
                 out = {"left": ref.uv_left, "right": ref.uv_right}, spr
         self._refine_ms += (time.perf_counter() - ts) * 1e3
@@ -367,7 +369,7 @@ class VisionPipeline:
         cl, cr = tl.cap_radius_px, tr.cap_radius_px
         rect = {s: self.rig.rectify_points(np.asarray(tp.uv, dtype=np.float64).reshape(1, 2), s)[0] if r is None else r
                 for s, tp, r in (("left", tl, rl), ("right", tr, rr))}
-        sp = triangulate_rectified_tip(self.rig, rect["left"], rect["right"], cfg.stereo)
+        sp = triangulate_rectified_tip(self.rig, rect["left"], rect["right"], cfg.stereo, covariance=False)
         odd = cl > 0 and cr > 0 and min(cl, cr) < cfg.occluded_cap_ratio * max(cl, cr)
         if cfg.occluded_pairs and (odd or (not sp.ok and sp.epipolar_px <= cfg.stereo.max_epipolar_px + max(cl, cr))):
             spo, tip, occ = self._occluded_pair(tl, tr, t, dict(rect))
@@ -528,15 +530,13 @@ class VisionPipeline:
         mask, org = seg.segment_region(image, roi, pad=pad)
         self._skin_px[side] = mask  # counted by _finger_gone, when a frame finds no fingertip
         td = time.perf_counter()
-        prior = None if pred is None or mode == "recheck" else pred - org
+        prior = None if mode == "recheck" else pred
         n_max = 1 if mode == "tracked" else cfg.max_candidates
-        if mode != "full" or self._z is not None:
-            tips = detect_fingertips(mask, self.K / z, cfg.fingertip, prior_uv=prior, max_tips=n_max)
+        if mode != "full" or self._z is not None:  # (image pixels from here on)
+            tips = detect_fingertips(mask, self.K / z, cfg.fingertip, prior_uv=prior, max_tips=n_max, origin=org)
         else:  # first acquisition, depth unknown: candidates at each depth of the working range
-            tips = search_tips(mask, [self.K / zz for zz in (z, *cfg.z_search_m)], cfg.fingertip, prior_uv=prior,
-                               max_tips=n_max)
-        for tip in tips:  # image pixels from here on
-            tip.uv = tip.uv + org
+            tips = search_tips(mask, [self.K / zz for zz in (z, *cfg.z_search_m)], cfg.fingertip, origin=org,
+                               prior_uv=prior, max_tips=n_max)
         if window is not None and tips:
             tips = self._keep_track_measurement(tips, image, seg, window, pred, z)
         if not tips and mode == "tracked" and cfg.full_search_on_miss:

@@ -337,7 +337,7 @@ class StereoRig:
             if side == "left"
             else (self.K_right, self.dist_right, self.R2, self.P2)
         )
-        if not d.any():  # no lens distortion: the same floats without 50 identity iterations per point
+        if not np.count_nonzero(d):  # no lens distortion: the same floats without 50 identity iterations per point
             return cv2.undistortPoints(uv.reshape(-1, 1, 2), K, None, None, Rr, P).reshape(-1, 2)
         crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-14)
         return cv2.undistortPoints(uv.reshape(-1, 1, 2), K, d, None, Rr, P, crit).reshape(-1, 2)

@@ -105,12 +105,26 @@ def _n_bins(cfg: SegmentConfig) -> int:
 
 class _TileIndex:
     """``tile_index * n_bins`` of a region's pixels as a row and a column term (cached per size;
-    their sum is the index image)."""
+    their sum is the index image), and that sum itself for regions up to ``_BASE_MAX_PX`` (a
+    tracking window: one addition of the bins per window instead of two)."""
 
     def __init__(self, tile: int, nb: int):
         self.tile, self.nb = tile, nb
         self._rows: dict = {}
         self._cols: dict = {}
+        self._base: dict = {}
+
+    def base(self, h: int, w: int) -> np.ndarray | None:
+        """``rows + cols`` of an h×w region, or None for a large one."""
+        if h * w > _BASE_MAX_PX:
+            return None
+        b = self._base.get((h, w))
+        if b is None:
+            if len(self._base) >= 256:  # (window sizes vary; keep the cache bounded)
+                self._base.clear()
+            rows, cols, _, _ = self.get(h, w)
+            b = self._base[(h, w)] = rows + cols
+        return b
 
     def get(self, h: int, w: int) -> tuple[np.ndarray, np.ndarray, int, int]:
         t = self.tile
@@ -124,12 +138,20 @@ class _TileIndex:
         return rows, cols, ty, tx
 
 
+_BASE_MAX_PX = 160 * 160
+
+
 def tile_histograms(bin_image: np.ndarray, tile: int, n_bins: int, _index: _TileIndex | None = None) -> np.ndarray:
     """All tile histograms of a bin image: (tiles_y, tiles_x, n_bins) int64, from one bincount."""
     h, w = bin_image.shape
-    rows, cols, ty, tx = (_index or _TileIndex(tile, n_bins)).get(h, w)
-    idx = cols + bin_image
-    idx += rows
+    index = _index or _TileIndex(tile, n_bins)
+    rows, cols, ty, tx = index.get(h, w)
+    base = index.base(h, w)
+    if base is not None:
+        idx = base + bin_image
+    else:
+        idx = cols + bin_image
+        idx += rows
     return np.bincount(idx.ravel(), minlength=ty * tx * n_bins).reshape(ty, tx, n_bins)
 
 
@@ -193,6 +215,12 @@ class Segmenter:
         self._model_of = None  # the background array the derived model below was made from
         self._hue_lut = getattr(self.skin, "hue_lut", None)  # a hue-interval skin test: one look-up
         #   table, sharing the saturation/value gate with the tile histograms' achromatic bin
+        self._skin_v = self._bin_v = None
+        if self._hue_lut is not None and c.sat_bins == 1 and c.achromatic_bin:
+            # the same tables read at "hue | not chromatic": an achromatic pixel reads entry 255
+            # (8-bit hue stops at 179), which is no skin and the achromatic bin
+            self._skin_v, self._bin_v = self._hue_lut.copy(), self._lut.copy()
+            self._skin_v[255], self._bin_v[255] = 0, c.bins
 
     def _model(self) -> tuple[np.ndarray, np.ndarray]:
         """The background as float32 histograms and its per-tile foreground counts
@@ -268,8 +296,7 @@ class Segmenter:
             return np.zeros((max(0, y1 - y0), max(0, x1 - x0)), np.uint8)
         if c.coarse > 1 and method == "sparse" and (x1 - x0) * (y1 - y0) >= c.coarse_min_px:
             return self._segment_coarse(image, roi)
-        hsv = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_BGR2HSV)
-        return self.segment_hsv(hsv, roi, method=method)
+        return self.segment_hsv(_region_hsv(image, x0, y0, x1, y1), roi, method=method)
 
     def segment_region(self, image: np.ndarray, roi=None, *, pad: int = 0) -> tuple[np.ndarray, tuple[int, int]]:
         """:meth:`segment`, cut to where it can hold skin: ``(mask, (x, y))``, the mask over the
@@ -335,8 +362,7 @@ class Segmenter:
             out = np.zeros((ey - oy, ex - ox), np.uint8)
         for box in boxes:
             bx0, by0, bx1, by1 = box
-            hsv = cv2.cvtColor(image[by0:by1, bx0:bx1], cv2.COLOR_BGR2HSV)
-            m = self.segment_hsv(hsv, box)
+            m = self.segment_hsv(_region_hsv(image, bx0, by0, bx1, by1), box)
             dst = out[by0 - oy: by1 - oy, bx0 - ox: bx1 - ox]
             cv2.bitwise_or(dst, m, dst=dst)
         return out if pad is None else (out, (ox, oy))
@@ -346,12 +372,16 @@ class Segmenter:
         tiles whose foreground state can matter — tiles holding a skin pixel and their neighbours —
         and gives exactly the mask of ``method="dense"`` (every tile of the region)."""
         c = self.config
-        if self._hue_lut is not None:
+        hv = hue = chroma = None
+        if self._skin_v is not None:  # the hue test, its gate and the histogram bins from two look-ups
+            chroma = cv2.inRange(hsv, (0, c.min_saturation, c.min_value), (255, 255, 255))
+            hv = cv2.bitwise_or(cv2.extractChannel(hsv, 0), cv2.bitwise_not(chroma))
+            skin = cv2.LUT(hv, self._skin_v)
+        elif self._hue_lut is not None:
             hue = cv2.extractChannel(hsv, 0)
             chroma = cv2.inRange(hsv, (0, c.min_saturation, c.min_value), (255, 255, 255))
             skin = cv2.bitwise_and(cv2.LUT(hue, self._hue_lut), chroma)
         else:
-            hue = chroma = None
             skin = self.skin.mask_hsv(hsv)
         h, w = skin.shape
         t = c.tile
@@ -369,9 +399,10 @@ class Segmenter:
                 return np.zeros((h, w), np.uint8)
             dense = sel.size > 0.4 * ty * tx
         if dense:
-            fg = self.foreground_tiles(hsv, roi, bins=hue_bin_image(hsv, c, self._lut, hue=hue, chroma=chroma)).view(np.uint8)
+            bins = cv2.LUT(hv, self._bin_v) if hv is not None else hue_bin_image(hsv, c, self._lut, hue=hue, chroma=chroma)
+            fg = self.foreground_tiles(hsv, roi, bins=bins).view(np.uint8)
         else:
-            fg = self._foreground_sparse(hsv, roi, sel, (ty, tx), hue, chroma)
+            fg = self._foreground_sparse(hsv, roi, sel, (ty, tx), hue, chroma, hv)
         if self._dilate_kernel is not None:
             fg = cv2.dilate(fg, self._dilate_kernel)
         fg_px = cv2.resize(fg, (tx * t, ty * t), interpolation=cv2.INTER_NEAREST)[:h, :w]
@@ -384,9 +415,10 @@ class Segmenter:
                 _median_in_place(mask[y0:y1, x0:x1], c.median)
         return mask
 
-    def _foreground_sparse(self, hsv, roi, sel, shape, hue=None, chroma=None) -> np.ndarray:
+    def _foreground_sparse(self, hsv, roi, sel, shape, hue=None, chroma=None, hv=None) -> np.ndarray:
         """Foreground tiles ``sel`` (flat indices) of the region, the others 0; ``hue``/``chroma``: the
-        region's hue channel and achromatic gate, if the caller has them (hue-only bins)."""
+        region's hue channel and achromatic gate, ``hv``: the two as one image (``_bin_v``'s index),
+        if the caller has them (hue-only bins)."""
         c = self.config
         t = c.tile
         ty, tx = shape
@@ -398,7 +430,9 @@ class Segmenter:
             dy, dx = np.mgrid[0:t, 0:t]
             off = self._tile_offsets[key] = (dy * w + dx).ravel()
         idx = ((iy * t) * w + ix * t)[:, None] + off[None, :]          # (T, t²) pixel indices
-        if hue is not None and c.sat_bins == 1 and c.achromatic_bin:
+        if hv is not None:
+            b = self._bin_v[hv.ravel()[idx]]
+        elif hue is not None and c.sat_bins == 1 and c.achromatic_bin:
             b = np.where(chroma.ravel()[idx], self._lut[hue.ravel()[idx]], c.bins)
         else:
             px = hsv.reshape(-1, 3)[idx]                                # (T, t², 3)
@@ -413,6 +447,13 @@ class Segmenter:
         fg = np.zeros(ty * tx, np.uint8)
         fg[sel] = self._foreground(hist.reshape(-1, nb), (y0 + iy, x0 + ix))
         return fg.reshape(ty, tx)
+
+
+def _region_hsv(image: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+    """HSV of the region ``[x0, x1) × [y0, y1)`` of a BGR image. The region is copied out first:
+    cvtColor reads a strided view of a frame that is not in the cache yet 2–3× slower than the
+    copy and the conversion of the copy together (70×70 tracking windows of 640×480 frames)."""
+    return cv2.cvtColor(np.ascontiguousarray(image[y0:y1, x0:x1]), cv2.COLOR_BGR2HSV)
 
 
 def binary_median(mask: np.ndarray, k: int) -> np.ndarray:

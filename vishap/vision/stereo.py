@@ -18,9 +18,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from vishap._core.errors import VisionError
+from vishap.vision.axis_disparity import axis_disparity, axis_lines
 from vishap.vision.rig import StereoRig
 
-__all__ = ["StereoPoint", "StereoConfig", "triangulate_tip", "dense_tip", "DenseMatcher", "RefineConfig",
+__all__ = ["StereoPoint", "StereoConfig", "triangulate_tip", "with_covariance", "dense_tip", "DenseMatcher", "RefineConfig",
            "RefinedPair", "refine_tip_pair", "subpixel_cap_edges", "fit_circles_shared_row"]
 
 
@@ -40,6 +42,7 @@ class StereoPoint:
     disparity_px: float = float("nan")
     epipolar_px: float = float("nan")
     reason: str = ""
+    rect: tuple | None = None             # the rectified pixels (left, right), when cov_cam was left out
 
     def __bool__(self) -> bool:
         return self.ok
@@ -62,8 +65,11 @@ def triangulate_tip(rig: StereoRig, uv_left, uv_right, config: StereoConfig = St
 _J_S = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.5, 0.0, 0.5], [1.0, 0.0, -1.0, 0.0]])  # ds/d(ul, vl, ur, vr): s = (u, v, d)
 
 
-def triangulate_rectified_tip(rig: StereoRig, rl, rr, config: StereoConfig = StereoConfig()) -> StereoPoint:
-    """As :func:`triangulate_tip`, for pixels already in the rectified images."""
+def triangulate_rectified_tip(rig: StereoRig, rl, rr, config: StereoConfig = StereoConfig(), *,
+                              covariance: bool = True) -> StereoPoint:
+    """As :func:`triangulate_tip`, for pixels already in the rectified images. ``covariance=False``
+    leaves ``cov_cam`` out and keeps the pixels in ``rect`` (a check of a pair whose point is
+    then replaced; :func:`with_covariance` adds it, the same floats)."""
     rl = np.asarray(rl, dtype=np.float64)
     rr = np.asarray(rr, dtype=np.float64)
     epi = float(abs(rl[1] - rr[1]))
@@ -79,13 +85,23 @@ def triangulate_rectified_tip(rig: StereoRig, rl, rr, config: StereoConfig = Ste
     s = np.array([rl[0], v, disp, 1.0])
     hom = rig.Q @ s
     p_rect = hom[:3] / hom[3]
-    J_p = (rig.Q[:3, :3] - np.outer(p_rect, rig.Q[3, :3])) / hom[3]  # dp/d(u, v, d)
+    R1 = rig.R1
+    if not covariance:
+        return StereoPoint(True, p_cam=R1.T @ p_rect, disparity_px=disp, epipolar_px=epi, rect=(rl, rr))
+    J_p = (rig.Q[:3, :3] - p_rect[:, None] * rig.Q[3, :3]) / hom[3]  # dp/d(u, v, d) (the outer product)
     J = J_p @ _J_S
     cov_rect = (config.sigma_px ** 2) * (J @ J.T)
-    R1 = rig.R1
     p_cam = R1.T @ p_rect
     cov_cam = R1.T @ cov_rect @ R1
     return StereoPoint(True, p_cam=p_cam, cov_cam=cov_cam, disparity_px=disp, epipolar_px=epi)
+
+
+def with_covariance(rig: StereoRig, sp: StereoPoint, config: StereoConfig = StereoConfig()) -> StereoPoint:
+    """``sp`` with its covariance: a point triangulated with ``covariance=False`` triangulated again
+    from its rectified pixels (the same ``config``); any other point as it is."""
+    if not sp.ok or sp.cov_cam is not None or sp.rect is None:
+        return sp
+    return triangulate_rectified_tip(rig, *sp.rect, config)
 
 
 class DenseMatcher:
@@ -184,8 +200,6 @@ class RefineConfig:
     #   the mean row of its edge points, where the line is best known (a point 0.6–0.9 radii behind the cap)
 
     def __post_init__(self) -> None:
-        from vishap._core.errors import VisionError
-
         if self.method not in ("none", "edges", "edges_separate", "match", "axis"):
             raise VisionError(f"refine method: expected none, edges, edges_separate, match or axis, got {self.method!r}")
 
@@ -354,9 +368,6 @@ def refine_tip_pair(rig: StereoRig, left: np.ndarray, right: np.ndarray, tip_lef
 def _refine_by_axis(rig: StereoRig, masks: dict | None, tip_left, tip_right, config: RefineConfig) -> RefinedPair:
     """The pair's disparity from the finger's side edges (:mod:`vishap.vision.axis_disparity`): each
     view's axis line at the cap centres' mean rectified row; the left point is the axis there."""
-    from vishap._core.errors import VisionError
-    from vishap.vision.axis_disparity import axis_disparity, axis_lines
-
     if masks is None:
         raise VisionError("refine method 'axis' needs the skin masks of both views")
     lines = axis_lines(rig, [("left", *masks["left"], tip_left), ("right", *masks["right"], tip_right)],
@@ -383,7 +394,7 @@ def _unrectify_point(rig: StereoRig, u: float, v: float, side: str) -> np.ndarra
     for a view without distortion (two per refined pair: the arrays' overhead was most of their cost)."""
     K, d, Rr, P = ((rig.K_left, rig.dist_left, rig.R1, rig.P1) if side == "left"
                    else (rig.K_right, rig.dist_right, rig.R2, rig.P2))
-    if d.any() or K[0, 1] != 0.0:
+    if np.count_nonzero(d) or K[0, 1] != 0.0:
         return _unrectify_points(rig, (u, v), side)[0]
     (p00, _, p02, _), (_, p11, p12, _), _ = P.tolist()
     (k00, _, k02), (_, k11, k12), _ = K.tolist()

@@ -68,14 +68,17 @@ class KalmanCV:
         dt = float(dt)
         if not (dt >= 0.0 and dt < np.inf):
             raise ShapeError(f"dt: expected a finite time step ≥ 0 s, got {dt}")
-        if dt != self._dt:  # F and Q depend on dt only: rebuild when it changes
+        if dt != self._dt:  # F and Q depend on dt only: rebuild when it changes (the frame interval's
+            #   floats differ from frame to frame: entry by entry, no index arrays)
             self._dt = dt
             q = self.q
-            idx = np.arange(d)
-            self.F[idx, idx + d] = dt
-            self.Q[idx, idx] = q * dt ** 3 / 3
-            self.Q[idx, idx + d] = self.Q[idx + d, idx] = q * dt ** 2 / 2
-            self.Q[idx + d, idx + d] = q * dt
+            F, Q = self.F, self.Q
+            q3, q2, q1 = q * dt ** 3 / 3, q * dt ** 2 / 2, q * dt
+            for i in range(d):
+                F[i, i + d] = dt
+                Q[i, i] = q3
+                Q[i, i + d] = Q[i + d, i] = q2
+                Q[i + d, i + d] = q1
         self.x = self.F @ self.x
         self.P = self.F @ self.P @ self.F.T + self.Q
         self.x_prior, self.P_prior = self.x, self.P
@@ -89,7 +92,7 @@ class KalmanCV:
             return
         d = self.dim
         z = np.asarray(z, dtype=np.float64).reshape(d)
-        if not np.all(np.isfinite(z)):
+        if not all(map(math.isfinite, z.tolist())):
             raise ShapeError("z: measurement contains NaN or inf")
         # H = [I 0]: H x, H P Hᵀ and P Hᵀ are slices
         self.y = z - self.x[:d]
