@@ -330,3 +330,22 @@ def test_of_several_finger_estimates_the_nearest_caps_the_speed():
     assert run((far, near))[0] == run(near)[0]
     assert run(far)[1] == 0.6 and cap_near < 0.6
     assert run((far, far))[0] == run(far)[0]
+
+
+def test_a_non_finite_finger_estimate_never_lifts_the_cap_another_set():
+    """Beside an estimate that puts the finger 15 mm over the face, one with a non-finite velocity
+    (a corrupt record's fields) leaves the output's speed towards the finger at the normal cap."""
+    def run(finger):
+        lim = TravelLimiter.for_approach(0.6, 40.0)
+        lim.reset(0.0, 0.0, 0.0)
+        for k in range(300):
+            out = lim.step(k * 1e-3, 0.0, 0.0, 0.2, 0.0, 0.0, 0.0, finger_m=0.015, gap_m=0.015, normal=(0.0, 0.0, 1.0),
+                           finger=finger)
+        return out
+
+    near = (0.0, 0.0, 0.015, 0.0, 0.0, 0.0)
+    alone = run(near)
+    assert alone[5] < 0.05  # held to the normal cap near the finger
+    for bad in ((0.0, 0.0, 0.015, math.inf, 0.0, 0.0), (math.nan, 0.0, 0.015, 0.0, 0.0, 0.0),
+                (0.0, 0.0, 0.015, 0.0, 0.0, -math.inf)):
+        assert run((near, bad)) == run((bad, near)) == alone

@@ -245,7 +245,7 @@ class TravelLimiter:
             for fx, fy, fz, fvx, fvy, fvz in (finger if isinstance(finger[0], tuple) else (finger,)):
                 rx, ry, rz = fx + fvx * L - cx, fy + fvy * L - cy, fz + fvz * L - cz
                 dp = math.sqrt(rx * rx + ry * ry + rz * rz)
-                if dp == dp:
+                if dp < math.inf:  # a non-finite estimate says nothing (its NaN gap would lift the normal cap)
                     finger_m = dp if finger_m is None or not finger_m < dp else finger_m
                     if normal is not None and (gap_m is None or not gap_m < -TOUCH_M):
                         # a finger predicted through the face is landing on it, not under it
