@@ -49,7 +49,8 @@ class FingertipConfig:
 
 @dataclass
 class Fingertip:
-    """Result of one detection, in the coordinates of the mask given (add the ROI origin yourself)."""
+    """Result of one detection, in the image's pixels: the mask's own plus the ``origin`` given to
+    :func:`detect_fingertips` (none: the mask's)."""
 
     found: bool
     uv: np.ndarray | None = None          # refined cap centre (float pixels)
@@ -58,7 +59,7 @@ class Fingertip:
     radius_px: float = 0.0                # r used
     cap_radius_px: float = 0.0            # radius of the fitted cap circle (0 when not refined)
     score: float = 0.0
-    n_candidates: int = 0
+    n_candidates: int = 0                 # candidates passing steps 1–9 (1: the nearest-first search stops at its first)
     extremity_px: float = 0.0             # distance from the skin centroid of the searched mask
 
 
@@ -166,29 +167,21 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area, shift) -> l
     xs = pts[:, 0] + r2
     ys = pts[:, 1] + r2
     # steps 6–9 on the square ring
-    n_half = 4 * r2
     flat, off_flat = mask.ravel(), _flat_offsets(r2, w)
     if nearest:
-        found = _nearest_candidate(flat, xs, ys, w, off_flat, n_half, r2, config, prior_uv)
+        found = _nearest_candidate(flat, xs, ys, w, off_flat, r2, config, prior_uv)
         if found is None:
             return []
         k, ring_k = found
         return _tips(mask, r, config, r2, xs[k: k + 1], ys[k: k + 1], ring_k[None], float(area), None, [0], shift)
-
-    def ring_test(xs, ys):
-        ring = flat[(ys * w + xs)[:, None] + off_flat] > 0  # (M, 8 r2)
-        s_square = ring.sum(axis=1)
-        n_diag = (ring[:, :n_half] & ring[:, n_half:]).sum(axis=1)
-        keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2) \
-            & (n_diag <= config.max_diagonal_pairs)
-        return xs[keep], ys[keep], ring[keep]
 
     if xs.size > _PREFILTER_MIN:  # many candidates (full frame): S_square of all from an integral image first
         ii = cv2.integral(cv2.threshold(mask, 0, 1, cv2.THRESH_BINARY)[1])
         s_square = _box_sum(ii, xs, ys, r2) - _box_sum(ii, xs, ys, r2 - 1)
         keep = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2)
         xs, ys = xs[keep], ys[keep]
-    xs, ys, ring = ring_test(xs, ys)
+    ring, keep = _ring_test(flat, ys * w + xs, off_flat, r2, config)
+    xs, ys, ring = xs[keep], ys[keep], ring[keep]
     if xs.size == 0:
         return []
     score = float(area) if scores is None else scores[ys, xs].astype(np.float64)  # (scalar: all equal)
@@ -218,7 +211,18 @@ def _detect(mask, r, config, prior_uv, max_tips, ri, r2, disk, area, shift) -> l
     return _tips(mask, r, config, r2, xs, ys, ring, score, ext, chosen, shift)
 
 
-def _nearest_candidate(flat, xs, ys, w, off_flat, n_half, r2, config, prior_uv):
+def _ring_test(flat, at, off_flat, r2, config):
+    """Steps 6–9 for the candidates at the flat indices ``at`` of the mask ``flat``: ``(ring, ok)``,
+    each one's square-ring skin flags (M, 8·r2) and whether its ring passes."""
+    n_half = 4 * r2
+    ring = flat[at[:, None] + off_flat] > 0
+    s_square = _row_sums(ring)
+    ok = (s_square >= config.ring_min * r2) & (s_square <= config.ring_max * r2) \
+        & (_row_sums(ring[:, :n_half] & ring[:, n_half:]) <= config.max_diagonal_pairs)
+    return ring, ok
+
+
+def _nearest_candidate(flat, xs, ys, w, off_flat, r2, config, prior_uv):
     """Steps 6–9 for one tip near a prior (a tracking window): with every score equal the winner is
     the valid candidate nearest ``prior_uv`` (the first in the candidates' order among equally near
     ones), so candidates are tested in order of distance, a chunk at a time, up to the first valid
@@ -226,13 +230,9 @@ def _nearest_candidate(flat, xs, ys, w, off_flat, n_half, r2, config, prior_uv):
     d2 = (xs - float(prior_uv[0])) ** 2 + (ys - float(prior_uv[1])) ** 2
     order = d2.argsort(kind="stable")
     at = ys * w + xs
-    lo, hi = config.ring_min * r2, config.ring_max * r2
     for k in range(0, order.size, 32):
         sel = order[k: k + 32]
-        ring = flat[at[sel][:, None] + off_flat] > 0  # (M, 8 r2)
-        s_square = _row_sums(ring)
-        ok = (s_square >= lo) & (s_square <= hi) & (_row_sums(ring[:, :n_half] & ring[:, n_half:])
-                                                    <= config.max_diagonal_pairs)
+        ring, ok = _ring_test(flat, at[sel], off_flat, r2, config)
         j = int(ok.argmax())
         if ok[j]:
             return int(sel[j]), ring[j]
@@ -409,6 +409,8 @@ _ONES2 = np.ones(2)  # row sums of (N, 2) products by one small matrix product
 def _row_sums(a: np.ndarray) -> np.ndarray:
     """``a.sum(axis=1)`` without ndarray.sum's Python layer (a few calls per tracked view)."""
     return np.add.reduce(a, axis=1)
+
+
 _ANGLES = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
 _UNIT = np.column_stack([np.cos(_ANGLES), np.sin(_ANGLES)])
 
