@@ -490,11 +490,11 @@ class VisionPipeline:
         changes the track when it ranks another finger first."""
         cfg = self.config
         wr = snap_roi(window, seg.config.tile, self._size)
-        found = detect_fingertips(seg.segment(image, wr), self.K / z, cfg.fingertip, prior_uv=pred - wr[:2], max_tips=1)
+        found = detect_fingertips(seg.segment(image, wr), self.K / z, cfg.fingertip, prior_uv=pred, max_tips=1,
+                                  origin=wr[:2])
         if not found:
             return tips
         w = found[0]
-        w.uv = w.uv + wr[:2]
         k = int(np.argmin([np.hypot(*(tp.uv - w.uv)) for tp in tips]))
         if np.hypot(*(tips[k].uv - w.uv)) > cfg.recheck_jump_px:
             return tips

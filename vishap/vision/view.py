@@ -25,21 +25,15 @@ def search_tips(mask: np.ndarray, radii, config: FingertipConfig, *, origin=(0, 
     at each radius of ``radii`` in turn; a candidate within its own radius of an earlier one is a
     repeat. With several radii the list is re-ranked by extremity (``by_extremity``) and cut to
     ``max_tips``. ``prior_uv`` is in full-image coordinates. Returned ``uv`` are full-image."""
-    origin = np.asarray(origin, dtype=np.float64)
-    prior = None if prior_uv is None else np.asarray(prior_uv, dtype=np.float64) - origin
     radii = list(radii)
     tips: list[Fingertip] = []
     for r in radii:
-        for tip in detect_fingertips(mask, r, config, prior_uv=prior, max_tips=max_tips):
+        for tip in detect_fingertips(mask, r, config, prior_uv=prior_uv, max_tips=max_tips, origin=origin):
             if all(np.hypot(*(tip.uv - o.uv)) > tip.radius_px for o in tips):
                 tips.append(tip)
     if len(radii) > 1 and by_extremity:
         tips.sort(key=lambda tp: -tp.extremity_px)
-    tips = tips[:max_tips]
-    for tip in tips:
-        tip.uv = tip.uv + origin
-        tip.uv_pixel = tip.uv_pixel + origin
-    return tips
+    return tips[:max_tips]
 
 
 @dataclass
