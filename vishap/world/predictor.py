@@ -18,7 +18,7 @@ import numpy as np
 from vishap._core.motion import min_jerk, min_jerk_rate
 
 __all__ = ["LastSample", "FiniteDifference", "KalmanPredictor", "MeetingPoint", "PathExtrapolator", "ReachFit", "make_predictor",
-           "near_predictor", "contact_point", "PREDICTORS", "NEAR_ACCEL_STD_M_S2"]
+           "near_predictor", "measurement_std_m", "contact_point", "PREDICTORS", "NEAR_ACCEL_STD_M_S2"]
 
 
 class LastSample:
@@ -284,10 +284,17 @@ def near_predictor(predictor) -> KalmanPredictor:
     tuned for; its velocity lags a starting reach by 100 ms, so the finger it extrapolates is too far.
     The caps take whichever of the two puts the finger nearer the device: this one is noisier, and
     its noise can only slow the device, never speed it up near the finger."""
-    R = getattr(predictor, "R", None)
-    if R is None:
+    sigma = measurement_std_m(predictor)
+    if sigma is None:
         return KalmanPredictor(accel_std_m_s2=NEAR_ACCEL_STD_M_S2)
-    return KalmanPredictor(accel_std_m_s2=NEAR_ACCEL_STD_M_S2, meas_std_m=float(np.sqrt(np.trace(np.asarray(R, float)) / 3.0)))
+    return KalmanPredictor(accel_std_m_s2=NEAR_ACCEL_STD_M_S2, meas_std_m=sigma)
+
+
+def measurement_std_m(predictor) -> float | None:
+    """The per-axis σ (m) of one fingertip sample that ``predictor`` assumes (its measurement noise
+    ``R``), or None when it has none."""
+    R = getattr(predictor, "R", None)
+    return None if R is None else float(np.sqrt(np.trace(np.asarray(R, float)) / 3.0))
 
 
 def contact_point(p_robot, v_robot, normal, offset_m: float, *, horizon_s: float, min_speed_m_s: float = 0.02):
