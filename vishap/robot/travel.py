@@ -75,8 +75,8 @@ APPROACH_LEAD_S = 0.040
 #: demos, extrapolated to the servo tick, was up to 11–15 mm further than the true pad (p99; p90
 #: 5–7 mm; median 0), and the device then crossed the true 20 mm at 0.3–0.37 m/s. Most of that was its
 #: velocity lagging a reach's start; with the caps' own faster estimate beside it (the nearer wins,
-#: world.predictor.near_predictor) it is p90 3.5 mm within 35 mm of the finger, p99 14 mm in a reach's
-#: first 100 ms, when no filter knows yet that the finger has started (docs/robot.md)
+#: world.predictor.near_predictor) it is p90 3.5 mm, p99 14 mm within 35 mm of the finger; the largest (15–21 mm)
+#: in a reach's first 100 ms, when no filter knows yet that the finger has started (docs/robot.md)
 APPROACH_MARGIN_M = 0.010
 #: the output's cap near the finger: 12 % under the goal, the most the arm overran its target's speed
 #: in the demos while the PD took up the lag of a turn (0.26–0.27 m/s measured with the cap at 0.25)
