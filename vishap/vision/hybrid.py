@@ -387,7 +387,12 @@ class HybridDetector:
         return q is None or q <= radius / self._radius <= 1.0 / q
 
     def _jumped(self, fit: _Fit, pred: np.ndarray) -> bool:
-        """Is the window's cap fit farther from the prediction than ``recheck_jump_radii`` radii?"""
+        """Is the window's cap fit farther from the prediction than ``recheck_jump_radii`` radii?
+
+        The window's gate already drops fits beyond ``gate_radii`` radii + 2σ of the track, so this acts
+        only between the two: mostly in the first frames followed after a find, while σ is large (with
+        the default tracker 2σ is 7.8 px on the first, 2.3 px from the fourth on; a cap of more than
+        about 23 px radius is then never re-checked by it)."""
         j = self.config.recheck_jump_radii
         return j is not None and float(np.hypot(*(fit.cap_uv - pred))) > j * self._radius
 
