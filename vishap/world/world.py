@@ -271,6 +271,7 @@ class World:
         if not confirmed:
             X = self._face_clear(X, subj)
         if glide and not self._felt(subj, p_robot_device) and (tau is not None or near or confirmed):
+            # (the shorter of the two times left: a poor reach fit re-timed the demos' touch 0.6 s late)
             X = self._glide_to(t, subj, X, min(t_left, t_line), ran, reach, X_plan)
         else:
             self._glide = None
