@@ -96,6 +96,12 @@ class World:
     ``servo_lag_s``, the servo's own lag behind its target). Before the finger lands within ``horizon_s``
     the meeting point restarts from its projection, so that the first landing point within the horizon
     is weighed against it.
+
+    The landing glide (``glide_m_s`` > 0, :meth:`_glide_to`): from the moment a landing is predicted until
+    the device feels the finger, the target is not sent to each sample's landing point at once: it
+    moves with the run-up (along the finger's fitted path when the fit is sure) and corrects towards
+    the plan over the time left until ``settle_s`` before the touch, then at most ``glide_m_s``.
+    ``glide_m_s`` 0: the plan alone.
     """
 
     def __init__(
