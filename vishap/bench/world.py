@@ -203,7 +203,8 @@ def _perfect_world_class():
         known (``ahead`` seconds before the touch; None: from the start) — a bound, not a policy."""
 
         def truth(self, traj, ahead):
-            self._obj, self._traj = self.scene.object(traj.object_name), traj
+            self._obj = self.scene.object(traj.object_name)
+            self.glide_m_s = 0.0  # the plan told the true touch point: sent there at once, as before the glide
             self._touch = self._obj.project(traj.position(traj.t_surface))
             self._t_known = -1e9 if ahead is None else traj.t_surface - ahead
             self._now = -1e9
@@ -217,12 +218,6 @@ def _perfect_world_class():
             if subj is self._obj and not in_contact and subj.mode.target != "centre" and self._now >= self._t_known:
                 return self._touch.copy()
             return X
-
-        def _runup_path(self, subj, reach):  # the run-up along the true path, timed by the true touch
-            if subj is not self._obj or self._now < self._t_known:
-                return super()._runup_path(subj, reach)
-            tt, tr = self._traj.t_surface, self._traj
-            return lambda tau: self._obj.project(tr.position(max(tau, tt - self.runup_s))) - self._touch
 
     return PerfectWorld
 

@@ -97,7 +97,7 @@ class World:
     the meeting point restarts from its projection, so that the first landing point within the horizon
     is weighed against it.
 
-    The landing glide (``glide_m_s`` > 0, :meth:`_glide_to`): from the moment a landing is predicted until
+    The landing glide (``glide_m_s`` > 0, :meth:`_glide_to`): from the finger near (``lock_m``) until
     the device feels the finger, the target is not sent to each sample's landing point at once: it
     moves with the run-up (along the finger's fitted path when the fit is sure) and corrects towards
     the plan over the time left until ``settle_s`` before the touch, then at most ``glide_m_s``.
@@ -276,7 +276,9 @@ class World:
             X = X + self._runup(t, subj, reach)
         if not confirmed:
             X = self._face_clear(X, subj)
-        if glide and not self._felt(subj, p_robot_device) and (tau is not None or near or confirmed):
+        # from the finger near (``lock_m``; started at the first predicted landing within the horizon, the
+        # spread cost bench world's wall 6 mm of landing error at 0.2–0.3 m/s and its force–depth R²)
+        if glide and not self._felt(subj, p_robot_device) and (near or confirmed):
             # (the shorter of the two times left: a poor reach fit re-timed the demos' touch 0.6 s late)
             X = self._glide_to(t, subj, X, min(t_left, t_line), ran, reach, X_plan)
         else:
