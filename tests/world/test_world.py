@@ -53,7 +53,8 @@ def test_target_is_held_ahead_at_the_meeting_point():
         return start + (end - start) * (10 * s**3 - 15 * s**4 + 6 * s**5)
 
     for pred in ("kalman", "cv"):
-        res = _run(World(scene, predictor=pred, handover="hold"), path, noise_m=0.0001, duration_s=0.6)
+        # (the plan: the landing glide spreads the way to it over the time left, test_the_landing_glide_*)
+        res = _run(World(scene, predictor=pred, handover="hold", glide_m_s=0.0), path, noise_m=0.0001, duration_s=0.6)
         # from 0.3 s to 0.15 s before contact the target is already near the meeting point,
         # while the finger's own projection is still far from it
         err = [np.linalg.norm(it.X_d - end) for t, it in res if 0.3 <= t <= 0.45]
@@ -257,6 +258,8 @@ def test_reach_fit_gives_the_decelerating_finger_velocity_at_the_touch():
 
 
 def _near_world(**kw):
+    """The plan near the finger (without the landing glide that smooths the way to it, unless ``kw`` asks)."""
+    kw.setdefault("glide_m_s", 0.0)
     w = World(load_scene("wall"), predictor="none", contact_model="ray", runup_s=0.0, **kw)
     w.update(0.0, [0.20, 0.0, -0.150 + 0.030])  # far: the target is the finger's projection
     return w
@@ -376,7 +379,7 @@ def test_no_run_up_from_a_reach_fit_that_ended_before_the_newest_sample():
 
     offsets = {}
     for label, when in (("ended", 0.1), ("ahead", 0.45)):
-        w = World(scene, predictor="none", contact_model="ray", latency_s=0.03)
+        w = World(scene, predictor="none", contact_model="ray", latency_s=0.03, glide_m_s=0.0)
         w.reach = Fit(when)
         w.update(0.0, [0.22, -0.02, -0.150 + 0.030])
         it = w.update(0.30, [0.22, -0.02, -0.150 + 0.0012])  # near and frozen: the run-up starts
@@ -394,7 +397,7 @@ def test_the_first_landing_point_within_the_horizon_is_weighed_against_the_finge
     from vishap.world.predictor import KalmanPredictor
 
     scene = load_scene("wall")
-    w = World(scene, predictor=KalmanPredictor(meas_std_m=0.0036), latency_s=0.026, contact_model="ray")
+    w = World(scene, predictor=KalmanPredictor(meas_std_m=0.0036), latency_s=0.026, contact_model="ray", glide_m_s=0.0)
     for k in range(12):
         w.update(k / 30, [0.22, -0.02, -0.10])
     for k, (dx, z) in enumerate([(0.001, -0.102), (0.003, -0.107), (0.004, -0.118)]):
@@ -414,8 +417,8 @@ def test_the_run_up_moves_the_target_with_the_finger_sideways_near_the_touch():
     interval and the servo's lag): behind the landing point before the touch, along with the finger
     after it. Without ``runup_s`` it is the landing point itself."""
     scene = load_scene("wall")
-    w = World(scene, latency_s=0.033, contact_model="both")
-    w0 = World(scene, latency_s=0.033, contact_model="both", runup_s=0.0)
+    w = World(scene, latency_s=0.033, contact_model="both", glide_m_s=0.0)  # the straight run-up, without the glide
+    w0 = World(scene, latency_s=0.033, contact_model="both", runup_s=0.0, glide_m_s=0.0)
     rng = np.random.default_rng(5)
     seen = 0
     for k in range(40):
@@ -516,3 +519,30 @@ def test_the_whole_passive_face_goes_round_the_shelf():
         off = np.abs(dev[:2] - end[:2])
         assert max(off) < half - 0.005, (finger, dev)  # the finger lands on the face
         assert abs(dev[1]) >= shelf.half[1] + half  # beside the shelf, the whole face clear of it
+
+
+def test_the_landing_glide_spreads_a_new_landing_point_over_the_time_left_and_creeps_at_the_end():
+    """With the landing glide a new landing point is reached no faster than the landing needs: a 6 mm
+    move 6.5 mm over the surface (325 ms away at the 20 mm/s floor) is spread evenly over the time left
+    until ``settle_s`` before the servo reaches the touch; within that, the target moves at most
+    ``glide_m_s``; once the device feels the finger the target is the plan again. Without the glide
+    (``glide_m_s`` 0) every sample's landing point is taken whole."""
+    def run(**kw):
+        w = _near_world(**kw)
+        xs = [w.update(0.1, [0.20, 0.0, -0.150 + 0.008]).X_d]  # near: the glide starts on the plan
+        xs.append(w.update(0.2, [0.206, 0.0, -0.150 + 0.0065]).X_d)  # the landing point 6 mm aside
+        xs.append(w.update(0.3, [0.2062, 0.0, -0.150 + 0.001]).X_d)  # 50 ms from the touch
+        xs.append(w.update(0.4, [0.2062, 0.0, -0.150 - 0.0005], [0.2045, 0.0, -0.1510]).X_d)  # felt
+        return w, np.array(xs)
+
+    w, x = run(glide_m_s=0.005)
+    lag = w.latency_s + 0.1 + w.servo_lag_s  # when the servo reaches a sample, 0.1 s apart
+    left = 0.0065 / 0.02 - lag - w.settle_s
+    assert np.allclose(x[0], [0.20, 0.0, -0.15])
+    assert x[1][0] - 0.20 == pytest.approx(0.006 * 0.1 / left) and x[1][1] == 0.0 and x[1][2] == -0.15
+    assert x[2][0] - x[1][0] == pytest.approx(0.005 * 0.1)  # the last 40 ms: 5 mm/s at most
+    assert np.allclose(x[3], [0.2062, 0.0, -0.15])  # the touch felt: the finger's projection
+    _, x0 = run(glide_m_s=0.0)
+    assert np.allclose(x0[1], [0.206, 0.0, -0.15]) and np.allclose(x0[2], x0[1])
+    with pytest.raises(ValueError, match="glide_m_s"):
+        World(load_scene("wall"), glide_m_s=-1.0)

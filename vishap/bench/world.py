@@ -204,6 +204,7 @@ def _perfect_world_class():
 
         def truth(self, traj, ahead):
             self._obj = self.scene.object(traj.object_name)
+            self.glide_m_s = 0.0  # the plan told the true touch point: sent there at once, as before the glide
             self._touch = self._obj.project(traj.position(traj.t_surface))
             self._t_known = -1e9 if ahead is None else traj.t_surface - ahead
             self._now = -1e9

@@ -96,6 +96,12 @@ class World:
     ``servo_lag_s``, the servo's own lag behind its target). Before the finger lands within ``horizon_s``
     the meeting point restarts from its projection, so that the first landing point within the horizon
     is weighed against it.
+
+    The landing glide (``glide_m_s`` > 0, :meth:`_glide_to`): from the finger near (``lock_m``) until
+    the device feels the finger, the target is not sent to each sample's landing point at once: it
+    moves with the run-up (along the finger's fitted path when the fit is sure) and corrects towards
+    the plan over the time left until ``settle_s`` before the touch, then at most ``glide_m_s``.
+    ``glide_m_s`` 0: the plan alone.
     """
 
     def __init__(
@@ -121,6 +127,8 @@ class World:
         inside_m: float = 0.010,
         runup_s: float = 0.06,
         deadband_m: float = 0.001,
+        settle_s: float = 0.04,
+        glide_m_s: float = 0.005,
     ):
         if contact_model not in CONTACT_MODELS:
             raise ValueError(f"contact_model must be one of {CONTACT_MODELS}, got {contact_model!r}")
@@ -153,6 +161,11 @@ class World:
         # routing moves the whole face, not its centre: every solid is grown sideways by its half width
         self.face_m = scene.passive_object.half_size_m
         self.deadband_m = float(deadband_m)
+        if not (np.isfinite(settle_s) and settle_s >= 0.0):
+            raise ValueError(f"settle_s must be a finite number >= 0, got {settle_s!r}")
+        if not (np.isfinite(glide_m_s) and glide_m_s >= 0.0):
+            raise ValueError(f"glide_m_s must be a finite number >= 0 (0: no glide), got {glide_m_s!r}")
+        self.settle_s, self.glide_m_s = float(settle_s), float(glide_m_s)
         tops = [o.centre + o.R[:, :2] @ (o.half * np.array(s)) for o in scene.objects for s in
                 ((1, 1), (1, -1), (-1, 1), (-1, -1))]
         self.z_safe = float(max(p[2] for p in tops)) + self.clearance_m
@@ -163,7 +176,10 @@ class World:
         self.held: np.ndarray | None = None
         self.plan: np.ndarray | None = None  # the landing point the device waits on near the finger
         self._run = None  # the run-up's (touch time, tangential velocity)
+        self._glide = None  # the landing glide's last (servo time, target, subject) (:meth:`_glide_to`)
         self.X_d: np.ndarray | None = None
+        self._via = False  # the last X_d was a routing way-point
+        self.subject_prev: SceneObject | None = None  # the subject of the last X_d
         self._lift_xy: np.ndarray | None = None  # where the lift off an object's top started (:meth:`_route`)
         self._t_last: float | None = None
         self._interval = 0.0  # spacing of the finger samples (s)
@@ -212,7 +228,8 @@ class World:
             h > -self.contact_margin_m or subj.inside_extent(p, self.path_margin_m))
         runup = self.runup_s > 0.0 and self.replan_m > 0.0
         reach = None
-        if (self.contact_model in ("reach", "all") or (runup and near)) and self.p_meas is not None \
+        glide = self.glide_m_s > 0.0
+        if (self.contact_model in ("reach", "all") or (runup and (near or (glide and tau is not None)))) and self.p_meas is not None \
                 and subj.height(self.p_meas) > 0.0:
             reach = self.reach.contact(subj.centre, subj.R)
         if reach is not None and self.contact_model == "reach":
@@ -245,7 +262,7 @@ class World:
         # on a decelerating finger — the line by its speed, the fit by its end-depth prior, which for a
         # finger slowing to a stop at the surface puts the crossing a third of the reach too early
         closing = max(-float(subj.normal @ v), _MIN_CLOSING_M_S)
-        t_left = max(h, 0.0) / closing
+        t_left = t_line = max(h, 0.0) / closing
         if reach is not None and self.reach.t_touch is not None:
             t_left = max(t_left, self.reach.t_touch - t - self.latency_s)
         # once frozen, the landing point stays latched while the finger stays near (the finger is committed
@@ -253,17 +270,26 @@ class World:
         # slowing down) does not release it back to the latest prediction within the last 100 ms
         frozen = near and (t_left < self.freeze_s or self.held is not None)
         X = self._target(subj, p, c, h, confirmed, near, frozen)
-        if not confirmed and runup and near:
+        X_plan = X
+        ran = not confirmed and runup and near
+        if ran:
             X = X + self._runup(t, subj, reach)
         if not confirmed:
             X = self._face_clear(X, subj)
+        # from the finger near (``lock_m``; started at the first predicted landing within the horizon, the
+        # spread cost bench world's wall 6 mm of landing error at 0.2–0.3 m/s and its force–depth R²)
+        if glide and not self._felt(subj, p_robot_device) and (near or confirmed):
+            # (the shorter of the two times left: a poor reach fit re-timed the demos' touch 0.6 s late)
+            X = self._glide_to(t, subj, X, min(t_left, t_line), ran, reach, X_plan)
+        else:
+            self._glide = None
         via = False
         start = p_robot_device if p_robot_device is not None else self.X_d
         if start is not None:
             routed = self._route(np.asarray(start, dtype=float), X, subj)
             via = routed is not X
             X = routed
-        self.X_d = X
+        self.X_d, self._via, self.subject_prev = X, via, subj
         return Interaction(t, subj.name, subj.mode_name, X.copy(), depth, imminent, in_contact,
                            subj.normal.copy(), distances, c, tau, via, np.array(p, float), np.array(v, float),
                            t + self.latency_s)
@@ -325,11 +351,84 @@ class World:
             # fitted over both); its velocity is no run-up (the wall demo's straight-down approach got
             # 25 mm/s sideways from it, a 1.5 mm jump of the waiting face 70 ms before the touch)
             self._run = (tt, np.zeros(3) if tt < t else self.reach.tangential_velocity_at(tt))
+        return self._runup_at(t + self.latency_s + self._interval + self.servo_lag_s)
+
+    def _runup_at(self, t_use: float) -> np.ndarray:
+        """The run-up's offset from the landing point at servo time ``t_use`` (zero without one)."""
+        if self._run is None:
+            return np.zeros(3)
         tt, v = self._run
-        t_use = t + self.latency_s + self._interval + self.servo_lag_s
         du = v * float(np.clip(t_use - tt, -self.runup_s, self.runup_s))
         n = float(np.linalg.norm(du))
         return du * (self.replan_m / n) if n > self.replan_m else du
+
+    def _glide_to(self, t: float, subj: SceneObject, X: np.ndarray, t_left: float, ran: bool, reach,
+                  X_plan: np.ndarray) -> np.ndarray:
+        """The landing glide: the target moves from the last one towards the plan ``X`` no faster than
+        the landing needs. Each sample is for the time the servo reaches it, ``tau`` (``latency_s`` + one
+        sample interval + ``servo_lag_s``). The move along the surface is the run-up's own motion from
+        the last sample's ``tau`` to this one (:meth:`_runup_path`: the finger's fitted path, carried),
+        plus a correction towards the plan spread evenly over the time left until ``settle_s`` before
+        the touch (the line's time left at the closing speed, the shorter of the two estimates) and,
+        once that is less than one sample interval, at most ``glide_m_s`` — the device is then still
+        relative to the finger's motion when it lands. Ends once the device feels the finger.
+
+        Why: a device taking each new landing point within one sample interval was still swinging back
+        from a wild one at the touch (the demos' real vision put the landing point 10–35 mm off for a
+        few frames at the start of a fast descent: ``still_tangential``), and under a finger landing at
+        3 mm/s it moved each 0.5–1.5 mm re-plan at 25–50 mm/s, which shook the light arm's face by
+        40–90 µm along the normal (contact made and broke twice)."""
+        tau = t + self.latency_s + self._interval + self.servo_lag_s
+        g = self._glide
+        if g is None or g[2] is not subj:
+            if self.X_d is None or self._via or self.subject_prev is not subj:
+                self._glide = (tau, X.copy(), subj)
+                return X
+            g = (tau - self._interval, self.X_d, subj)  # from the last target, towards this one
+        tau0, X0, _ = g
+        off = self._runup_path(subj, reach)
+        if off is not None:  # the run-up along the finger's fitted path
+            X = self._face_clear(X_plan + off(tau), subj)
+            base = X0 + (off(tau) - off(tau0))
+        else:
+            base = X0 + (self._runup_at(tau) - self._runup_at(tau0) if ran else 0.0)
+        base = base - subj.normal * float(subj.normal @ (base - X))  # on X's level along the normal
+        d = X - base
+        n = float(np.linalg.norm(d))
+        step = max(tau - tau0, 0.0)
+        left = t_left + self.latency_s - (tau - t) - self.settle_s  # from the servo reaching this sample
+        lim = self.glide_m_s * step
+        if left > step:
+            lim = max(lim, n * step / left)
+        out = base + d * (lim / n) if n > lim else X.copy()
+        self._glide = (tau, out.copy(), subj)
+        return out
+
+    def _runup_path(self, subj: SceneObject, reach):
+        """The run-up as a function of servo time from the fitted reach (:class:`ReachFit`), or None:
+        the offset from the landing point along the finger's fitted tangential path, ``u(max(τ, T −
+        runup_s)) − u(T)`` with ``T`` the fitted touch — still before the last ``runup_s``, then moving
+        with the finger's fitted (decelerating) motion, on the landing point at the touch, and never
+        further from it than the re-plan room. Refitted at every sample (the straight run-up keeps the
+        first fit's velocity: 13 mm/s for a finger that landed at 38 mm/s in bench world's wall
+        approach 2). None without a fit, with a fitted reach that ended before now (not this reach), or
+        with a fit whose touch point is less sure than half the re-plan room (σ; the demos' real vision
+        gave 10–12 mm fits of a straight-down finger 14 mm sideways)."""
+        fit, tt = self.reach, self.reach.t_touch
+        if (reach is None or tt is None or self._t_last is None or tt < self._t_last
+                or reach[1] > (0.5 * self.replan_m) ** 2):
+            return None
+        end = fit.tangential_at(tt)
+
+        def off(tau):
+            du = fit.tangential_at(max(tau, tt - self.runup_s)) - end
+            n = float(np.linalg.norm(du))
+            return du * (self.replan_m / n) if n > self.replan_m else du
+        return off
+
+    def _felt(self, subj: SceneObject, p_robot_device) -> bool:
+        """The device pushed under the subject's surface by more than ``engage_m``: the touch felt."""
+        return p_robot_device is not None and subj.height(np.asarray(p_robot_device, dtype=float)) < -self.engage_m
 
     def _touch_confirmed(self, subj: SceneObject, p, p_robot_device) -> bool:
         """The touch seen, not only predicted: the device is pushed under the surface by more than
@@ -340,7 +439,7 @@ class World:
         at the surface up to 150 ms before the touch, and following its projection from then on moved
         the waiting face sideways under the landing finger. A second one in a row does (a finger resting
         on the surface lightly, without pushing the device, is then centred as before)."""
-        if p_robot_device is not None and subj.height(np.asarray(p_robot_device, dtype=float)) < -self.engage_m:
+        if self._felt(subj, p_robot_device):
             return True
         if self._seen == 0:
             return False
