@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vishap._core.check import as_array
-from vishap.world.predictor import MeetingPoint, PathExtrapolator, ReachFit, contact_point, make_predictor
+from vishap.world.predictor import (MeetingPoint, PathExtrapolator, ReachFit, contact_point, make_predictor,
+                                    measurement_std_m)
 from vishap.world.scene import Scene, SceneObject
 
 __all__ = ["Interaction", "World", "HANDOVERS"]
@@ -140,7 +141,7 @@ class World:
         self.predictor = make_predictor(predictor) if isinstance(predictor, str) else predictor
         # one figure for the fingertip's noise: the path and reach fits weigh the samples by the σ the
         # predictor assumes (the stereo model's in the demos, 3–4 mm), not by a smaller one of their own
-        sigma = _meas_std(self.predictor)
+        sigma = measurement_std_m(self.predictor)
         self.path = PathExtrapolator() if sigma is None else PathExtrapolator(meas_std_m=sigma)
         self.reach = ReachFit() if sigma is None else ReachFit(meas_std_m=sigma)
         self.handover = handover
@@ -551,13 +552,6 @@ class World:
             for o in self.scene.objects
             if not o.segment_hits(a, a, margin=0.0, top_clearance=-0.0005)
         )
-
-
-def _meas_std(predictor) -> float | None:
-    """The per-axis σ (m) of one fingertip sample that ``predictor`` assumes (its measurement noise
-    ``R``), or None when it has none."""
-    R = getattr(predictor, "R", None)
-    return None if R is None else float(np.sqrt(np.trace(np.asarray(R, float)) / 3.0))
 
 
 def _tangential(d, normal) -> float:
