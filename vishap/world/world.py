@@ -352,16 +352,24 @@ class World:
             # fitted over both); its velocity is no run-up (the wall demo's straight-down approach got
             # 25 mm/s sideways from it, a 1.5 mm jump of the waiting face 70 ms before the touch)
             self._run = (tt, np.zeros(3) if tt < t else self.reach.tangential_velocity_at(tt))
-        return self._runup_at(t + self.latency_s + self._interval + self.servo_lag_s)
+        return self._runup_at(self._servo_time(t))
+
+    def _servo_time(self, t: float) -> float:
+        """When the servo reaches a target made from the sample of time ``t``: ``latency_s`` + one
+        sample interval + ``servo_lag_s`` later."""
+        return t + self.latency_s + self._interval + self.servo_lag_s
+
+    def _within_room(self, du: np.ndarray) -> np.ndarray:
+        """A run-up offset ``du`` shortened to the re-plan room (``replan_m``) where it is longer."""
+        n = float(np.linalg.norm(du))
+        return du * (self.replan_m / n) if n > self.replan_m else du
 
     def _runup_at(self, t_use: float) -> np.ndarray:
         """The run-up's offset from the landing point at servo time ``t_use`` (zero without one)."""
         if self._run is None:
             return np.zeros(3)
         tt, v = self._run
-        du = v * float(np.clip(t_use - tt, -self.runup_s, self.runup_s))
-        n = float(np.linalg.norm(du))
-        return du * (self.replan_m / n) if n > self.replan_m else du
+        return self._within_room(v * float(np.clip(t_use - tt, -self.runup_s, self.runup_s)))
 
     def _glide_to(self, t: float, subj: SceneObject, X: np.ndarray, t_left: float, ran: bool, reach,
                   X_plan: np.ndarray) -> np.ndarray:
@@ -379,7 +387,7 @@ class World:
         few frames at the start of a fast descent: ``still_tangential``), and under a finger landing at
         3 mm/s it moved each 0.5–1.5 mm re-plan at 25–50 mm/s, which shook the light arm's face by
         40–90 µm along the normal (contact made and broke twice)."""
-        tau = t + self.latency_s + self._interval + self.servo_lag_s
+        tau = self._servo_time(t)
         g = self._glide
         if g is None or g[2] is not subj:
             if self.X_d is None or self._via or self.subject_prev is not subj:
@@ -389,8 +397,9 @@ class World:
         tau0, X0, _ = g
         off = self._runup_path(subj, reach)
         if off is not None:  # the run-up along the finger's fitted path
-            X = self._face_clear(X_plan + off(tau), subj)
-            base = X0 + (off(tau) - off(tau0))
+            o = off(tau)
+            X = self._face_clear(X_plan + o, subj)
+            base = X0 + (o - off(tau0))
         else:
             base = X0 + (self._runup_at(tau) - self._runup_at(tau0) if ran else 0.0)
         base = base - subj.normal * float(subj.normal @ (base - X))  # on X's level along the normal
@@ -422,9 +431,7 @@ class World:
         end = fit.tangential_at(tt)
 
         def off(tau):
-            du = fit.tangential_at(max(tau, tt - self.runup_s)) - end
-            n = float(np.linalg.norm(du))
-            return du * (self.replan_m / n) if n > self.replan_m else du
+            return self._within_room(fit.tangential_at(max(tau, tt - self.runup_s)) - end)
         return off
 
     def _felt(self, subj: SceneObject, p_robot_device) -> bool:
