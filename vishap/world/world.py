@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vishap._core.check import as_array
+from vishap._core.errors import ConfigError
 from vishap.world.predictor import (MeetingPoint, PathExtrapolator, ReachFit, contact_point, make_predictor,
                                     measurement_std_m)
 from vishap.world.scene import Scene, SceneObject
@@ -132,11 +133,11 @@ class World:
         glide_m_s: float = 0.005,
     ):
         if contact_model not in CONTACT_MODELS:
-            raise ValueError(f"contact_model must be one of {CONTACT_MODELS}, got {contact_model!r}")
+            raise ConfigError(f"contact_model must be one of {CONTACT_MODELS}, got {contact_model!r}", field="contact_model")
         self.contact_model = contact_model
         self.engage_m = float(engage_m)
         if handover not in HANDOVERS:
-            raise ValueError(f"handover must be one of {HANDOVERS}, got {handover!r}")
+            raise ConfigError(f"handover must be one of {HANDOVERS}, got {handover!r}", field="handover")
         self.scene = scene
         self.predictor = make_predictor(predictor) if isinstance(predictor, str) else predictor
         # one figure for the fingertip's noise: the path and reach fits weigh the samples by the σ the
@@ -163,9 +164,9 @@ class World:
         self.face_m = scene.passive_object.half_size_m
         self.deadband_m = float(deadband_m)
         if not (np.isfinite(settle_s) and settle_s >= 0.0):
-            raise ValueError(f"settle_s must be a finite number >= 0, got {settle_s!r}")
+            raise ConfigError(f"settle_s must be a finite number >= 0, got {settle_s!r}", field="settle_s")
         if not (np.isfinite(glide_m_s) and glide_m_s >= 0.0):
-            raise ValueError(f"glide_m_s must be a finite number >= 0 (0: no glide), got {glide_m_s!r}")
+            raise ConfigError(f"glide_m_s must be a finite number >= 0 (0: no glide), got {glide_m_s!r}", field="glide_m_s")
         self.settle_s, self.glide_m_s = float(settle_s), float(glide_m_s)
         tops = [o.centre + o.R[:, :2] @ (o.half * np.array(s)) for o in scene.objects for s in
                 ((1, 1), (1, -1), (-1, 1), (-1, -1))]
