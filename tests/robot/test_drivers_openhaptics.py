@@ -36,6 +36,7 @@ class FakeHD:
                       CODES["HD_NOMINAL_MAX_CONTINUOUS_FORCE"]: [cont],
                       CODES["HD_NOMINAL_MAX_STIFFNESS"]: [k_n_mm], CODES["HD_USABLE_WORKSPACE_DIMENSIONS"]: list(ws_mm)}
         self.q = np.array([0.1, 0.2, -0.1])  # the arm's true joint angles (rad, vishap's convention)
+        self.dq = np.zeros(3)  # how far the arm turns in each scheduler frame (rad)
         self.joint_sign = np.ones(3)  # how the device reports them (a wrong mapping: set a -1)
         self.error = False
         self.callbacks = []
@@ -112,6 +113,8 @@ class FakeHD:
 
     def _run(self):
         while self.running:
+            with self.lock:
+                self.q = self.q + self.dq
             self.callbacks = [cb for cb in self.callbacks if cb() == 1]
             time.sleep(0.0005)
 
@@ -191,10 +194,12 @@ def test_units_and_frames(fake, device):
 
 
 def test_rates_are_the_backward_difference_over_one_frame(fake, device):
+    # the arm turns by the same step in every frame: the difference over the last frame is that step
+    # however many frames the scheduler ran before the read (a one-off jump is seen only if exactly one did)
     _frames(device)
     with fake.lock:
-        fake.q = fake.q + np.array([1e-3, 0.0, -2e-3])
-    device.step()
+        fake.dq = np.array([1e-3, 0.0, -2e-3])
+    _frames(device, 2)
     w = device.read_scalar()[3:]
     assert w == pytest.approx((1.0, 0.0, -2.0), rel=1e-6)  # rad per 1 ms frame → rad/s
 
