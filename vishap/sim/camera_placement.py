@@ -25,11 +25,14 @@ DEFAULT_ELEVATION_DEG = 40.0  # rig above the horizontal through the target
 
 
 def look_at(eye_robot, target_robot, up_robot=(0.0, 0.0, 1.0)) -> np.ndarray:
-    """``T_robot_cam`` of an OpenCV camera at ``eye`` looking at ``target`` with image-up ≈ ``up``."""
+    """``T_robot_cam`` of an OpenCV camera at ``eye`` looking at ``target`` with image-up ≈ ``up``
+    (looking along ``up``, image x is robot x made orthogonal to the view)."""
     eye = np.asarray(eye_robot, dtype=np.float64)
     z = np.asarray(target_robot, dtype=np.float64) - eye
     z /= np.linalg.norm(z)
     x = np.cross(z, np.asarray(up_robot, dtype=np.float64))
+    if np.linalg.norm(x) < 1e-6:
+        x = np.array([1.0, 0.0, 0.0]) - z[0] * z
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
     T = np.eye(4)

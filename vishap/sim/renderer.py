@@ -27,6 +27,7 @@ from vishap._core.check import as_transform
 from vishap._core.errors import ConfigError
 from vishap.sim import hand as _hand
 from vishap.sim._pyrender import import_pyrender, set_msaa
+from vishap.sim.camera_placement import look_at
 from vishap.sim.camera_effects import CameraEffects, EffectsState, apply_effects
 from vishap.sim.scene_objects import SceneSpec, load_scene_spec, object_meshes
 from vishap.sim.state import FrameState, PassiveObject, RenderedPair
@@ -354,19 +355,9 @@ def _translation(p) -> np.ndarray:
 
 
 def _light_pose(eye, target) -> np.ndarray:
-    """A light's pose: pyrender lights shine along their local −z."""
-    eye, target = np.asarray(eye, float), np.asarray(target, float)
-    z = eye - target
-    z /= np.linalg.norm(z)
-    x = np.cross([0.0, 0.0, 1.0], z)
-    if np.linalg.norm(x) < 1e-6:
-        x = np.array([1.0, 0.0, 0.0])
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([x, y, z])
-    T[:3, 3] = eye
-    return T
+    """A light's pose: pyrender lights shine along their local −z (OpenGL axes: the OpenCV
+    camera's look-at frame with y and z turned round)."""
+    return look_at(eye, target) @ np.diag([1.0, -1.0, -1.0, 1.0])
 
 
 def _segment_pose(a, b, along: str = "z") -> np.ndarray:
