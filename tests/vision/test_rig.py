@@ -315,3 +315,48 @@ def test_a_pattern_size_needs_both_sides(distorted_rig, tmp_path):
     with pytest.raises(ConfigError, match="board_width and board_height") as exc:
         StereoRig.load(path)
     assert exc.value.field == "board_height"
+
+
+def _rotated_rig(skew: float = 0.0, distorted: bool = False) -> StereoRig:
+    """A rig whose rectification rotates both views (toe-in and offset), optionally with skew or distortion."""
+    from vishap._core.pose import rotvec_to_matrix
+
+    K1 = np.array([[560.0, skew, 322.0], [0.0, 558.0, 241.5], [0.0, 0.0, 1.0]])
+    K2 = np.array([[552.0, 0.0, 317.0], [0.0, 553.5, 238.0], [0.0, 0.0, 1.0]])
+    d = np.array([-0.21, 0.08, 0.0012, -0.0007, -0.012]) if distorted else np.zeros(5)
+    return StereoRig((640, 480), K1, d, K2, d.copy(), rotvec_to_matrix([0.004, -0.03, 0.002]),
+                     np.array([-0.0601, 0.0007, 0.0012]))
+
+
+@pytest.mark.parametrize("skew, distorted", [(0.0, False), (0.8, False), (0.0, True)])
+def test_rectified_points_are_opencvs_floats(skew, distorted, rng):
+    # one point in floats, a few (the pipeline's candidates), many (through OpenCV): the same floats
+    rig = _rotated_rig(skew, distorted)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-14)
+    for side, K, d, Rr, P in (("left", rig.K_left, rig.dist_left, rig.R1, rig.P1),
+                              ("right", rig.K_right, rig.dist_right, rig.R2, rig.P2)):
+        for n in (1, 3, 40):
+            uv = rng.uniform([-20.0, -20.0], [660.0, 500.0], (n, 2))
+            ref = cv2.undistortPoints(uv.reshape(-1, 1, 2), K, d, None, Rr, P, crit).reshape(-1, 2)
+            np.testing.assert_array_equal(rig.rectify_points_fast(uv, side), ref)
+            np.testing.assert_array_equal([rig.rectify_point(u, v, side) for u, v in uv.tolist()], ref)
+
+
+def test_assigning_a_field_drops_what_was_derived_from_it(rng):
+    # the rig keeps each view's constants, its rectification maps and Q's rows until a field is assigned
+    rig, other = _rotated_rig(), StereoRig.from_fov(640, 480, 70.0, 0.08)
+    uv = rng.uniform([50.0, 50.0], [590.0, 430.0], (3, 2))
+    before = {s: rig.rectify_points_fast(uv, s) for s in ("left", "right")}
+    maps_before = rig.rectification_maps("left")[0].copy()
+    assert rig.Q_rows == tuple(map(tuple, rig.Q.tolist()))
+    for name in ("K_left", "dist_left", "K_right", "dist_right", "R", "T", "R1", "R2", "P1", "P2", "Q"):
+        setattr(rig, name, getattr(other, name))
+    for s in ("left", "right"):
+        got = rig.rectify_points_fast(uv, s)
+        assert not np.allclose(got, before[s])
+        np.testing.assert_array_equal(got, other.rectify_points_fast(uv, s))
+        np.testing.assert_array_equal(rig.rectify_point(*uv[0], s), other.rectify_point(*uv[0], s))
+    assert not np.array_equal(rig.rectification_maps("left")[0], maps_before)
+    np.testing.assert_array_equal(rig.rectification_maps("left")[0], other.rectification_maps("left")[0])
+    assert rig.Q_rows == other.Q_rows
+    assert (rig.rectified_fx_px, rig.rectified_baseline_m) == (other.rectified_fx_px, other.rectified_baseline_m)

@@ -99,7 +99,14 @@ class StereoRig:
     board: str | None = None
     board_size: tuple[int, int] | None = None   # (width, height): inner corners / squares
     square_m: float | None = None
-    _maps: dict = field(default_factory=dict, repr=False)
+    _cache: dict = field(default_factory=dict, init=False, repr=False)  # what the fields give (see rectified_view)
+
+    def __setattr__(self, name: str, value) -> None:
+        # what is derived from the fields (rectification maps, each view's constants) is kept until a
+        # field is assigned: a rig is changed by assigning its fields, never by writing into their arrays
+        object.__setattr__(self, name, value)
+        if not name.startswith("_"):
+            object.__setattr__(self, "_cache", {})
 
     def __post_init__(self) -> None:
         try:
@@ -245,12 +252,25 @@ class StereoRig:
 
     @property
     def rectified_fx_px(self) -> float:
-        return float(self.P1[0, 0])
+        return self._derived("rectified_fx_px", lambda: float(self.P1[0, 0]))
 
     @property
     def rectified_baseline_m(self) -> float:
         """Baseline along the rectified x axis: ``-P2[0, 3] / P2[0, 0]``."""
-        return float(-self.P2[0, 3] / self.P2[0, 0])
+        return self._derived("rectified_baseline_m", lambda: float(-self.P2[0, 3] / self.P2[0, 0]))
+
+    @property
+    def Q_rows(self) -> tuple[tuple[float, float, float, float], ...]:
+        """The rows of ``Q`` as floats (for arithmetic on one point at a time)."""
+        return self._derived("Q_rows", lambda: tuple(map(tuple, self.Q.tolist())))
+
+    def _derived(self, key: str, make):
+        """A value computed from the fields, kept until a field is assigned."""
+        try:
+            return self._cache[key]
+        except KeyError:
+            value = self._cache[key] = make()
+            return value
 
     # ------------------------------------------------------------------ geometry
     def project(self, p_cam) -> tuple[np.ndarray, np.ndarray]:
@@ -332,15 +352,30 @@ class StereoRig:
     def rectify_points_fast(self, uv: np.ndarray, side: str) -> np.ndarray:
         """:meth:`rectify_points` of an (N, 2) float64 array already checked finite (the pipeline's
         own pixels, a few calls per stereo pair): the same floats without the checks."""
-        K, d, Rr, P = (
-            (self.K_left, self.dist_left, self.R1, self.P1)
-            if side == "left"
-            else (self.K_right, self.dist_right, self.R2, self.P2)
-        )
-        if not np.count_nonzero(d):  # no lens distortion: the same floats without 50 identity iterations per point
-            return cv2.undistortPoints(uv.reshape(-1, 1, 2), K, None, None, Rr, P).reshape(-1, 2)
-        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-14)
-        return cv2.undistortPoints(uv.reshape(-1, 1, 2), K, d, None, Rr, P, crit).reshape(-1, 2)
+        v = self.rectified_view(side)
+        if v.undistorted:
+            if len(uv) <= _FEW_POINTS:  # cv2.undistortPoints' arithmetic in floats costs less than its call
+                return np.array([v.rectify(a, b) for a, b in uv.tolist()]).reshape(-1, 2)
+            # no lens distortion: the same floats without 50 identity iterations per point
+            return cv2.undistortPoints(uv.reshape(-1, 1, 2), v.K, None, None, v.R_rect, v.P).reshape(-1, 2)
+        return cv2.undistortPoints(uv.reshape(-1, 1, 2), v.K, v.dist, None, v.R_rect, v.P,
+                                   _UNDISTORT_CRIT).reshape(-1, 2)
+
+    def rectify_point(self, u: float, v: float, side: str) -> tuple[float, float]:
+        """One raw pixel ``(u, v)`` of a view (floats, finite) to its rectified pixel: the floats of
+        :meth:`rectify_points`."""
+        view = self.rectified_view(side)
+        if view.undistorted:
+            return view.rectify(u, v)
+        a, b = self.rectify_points_fast(np.array([[u, v]]), side)[0].tolist()
+        return a, b
+
+    def rectified_view(self, side: str) -> "RectifiedView":
+        """One view's camera, distortion and rectification, and the constants its per-point maps use;
+        computed once per side (assigning a field starts again)."""
+        return self._derived(side, lambda: RectifiedView(
+            *((self.K_left, self.dist_left, self.R1, self.P1) if side == "left"
+              else (self.K_right, self.dist_right, self.R2, self.P2))))
 
     def triangulate_rectified(self, uv_left_rect, uv_right_rect) -> np.ndarray:
         """Triangulate rectified pixels (same row, disparity ``u_l - u_r``) to ``p_cam`` (N, 3)."""
@@ -354,14 +389,9 @@ class StereoRig:
 
     def rectification_maps(self, side: str = "left") -> tuple[np.ndarray, np.ndarray]:
         """``cv2.remap`` maps (fixed-point, fast) from raw to rectified image; computed once."""
-        if side not in self._maps:
-            K, d, Rr, P = (
-                (self.K_left, self.dist_left, self.R1, self.P1)
-                if side == "left"
-                else (self.K_right, self.dist_right, self.R2, self.P2)
-            )
-            self._maps[side] = cv2.initUndistortRectifyMap(K, d, Rr, P, self.image_size, cv2.CV_16SC2)
-        return self._maps[side]
+        v = self.rectified_view(side)
+        return self._derived(f"maps_{side}", lambda: cv2.initUndistortRectifyMap(v.K, v.dist, v.R_rect, v.P,
+                                                                                 self.image_size, cv2.CV_16SC2))
 
     def rectify_image(self, image: np.ndarray, side: str = "left") -> np.ndarray:
         """Warp a raw image of one camera into its rectified image."""
@@ -476,6 +506,46 @@ class StereoRig:
             "board_size": None if self.board_size is None else list(self.board_size),
             "square_m": self.square_m,
         }
+
+
+_FEW_POINTS = 4  # up to this many points are rectified in floats (one per candidate of a tracked view)
+_UNDISTORT_CRIT = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-14)
+
+
+class RectifiedView:
+    """One camera of a rig with its rectification (``K``, ``dist``, ``R_rect``, ``P``) and the floats
+    of the maps between its raw and rectified pixels when it has no lens distortion
+    (``undistorted``): :meth:`rectify` is cv2.undistortPoints' arithmetic for one point (the new
+    camera matrix times the rectifying rotation, applied to ((u − cx)/fx, (v − cy)/fy); the camera's
+    skew is not used there), :meth:`unrectify` cv2.projectPoints' after the rotation back."""
+
+    def __init__(self, K: np.ndarray, dist: np.ndarray, R_rect: np.ndarray, P: np.ndarray):
+        self.K, self.dist, self.R_rect, self.P = K, dist, R_rect, P
+        self.undistorted = not np.count_nonzero(dist)
+        self.skew_free = K[0, 1] == 0.0
+        (k00, _, k02), (_, k11, k12), _ = K.tolist()
+        self.ifx, self.ify, self.cx, self.cy = 1.0 / k00, 1.0 / k11, k02, k12
+        self.fx, self.fy = k00, k11
+        Pl, Rl = P[:, :3].tolist(), R_rect.tolist()
+        # P[:, :3] · R_rect, each entry summed left to right (as OpenCV's 3×3 product)
+        self.RR = tuple(Pl[i][0] * Rl[0][j] + Pl[i][1] * Rl[1][j] + Pl[i][2] * Rl[2][j]
+                        for i in range(3) for j in range(3))
+        self.R_entries = tuple(x for row in Rl for x in row)  # R_rect row by row
+        (p00, _, p02, _), (_, p11, p12, _), _ = P.tolist()
+        self.p00, self.p02, self.p11, self.p12 = p00, p02, p11, p12
+
+    def rectify(self, u: float, v: float) -> tuple[float, float]:
+        a, b, c, d, e, f, g, h, i = self.RR
+        x, y = (u - self.cx) * self.ifx, (v - self.cy) * self.ify
+        w = 1.0 / (g * x + h * y + i)
+        return (a * x + b * y + c) * w, (d * x + e * y + f) * w
+
+    def unrectify(self, u: float, v: float) -> tuple[float, float]:
+        """A rectified pixel back to the raw pixel (a view without distortion or skew only)."""
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = self.R_entries
+        x, y = (u - self.p02) / self.p00, (v - self.p12) / self.p11
+        iz = 1.0 / (x * r02 + y * r12 + r22)
+        return (x * r00 + y * r10 + r20) * iz * self.fx + self.cx, (x * r01 + y * r11 + r21) * iz * self.fy + self.cy
 
 
 def _as_field(make, name: str) -> np.ndarray:

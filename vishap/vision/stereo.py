@@ -13,6 +13,7 @@ rectified pair) sampled at the left tip, is :func:`dense_tip`; ``vishap bench vi
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -53,6 +54,12 @@ def _disparity_limits(rig: StereoRig, cfg: StereoConfig) -> tuple[float, float]:
     return fb / cfg.max_depth_m, fb / cfg.min_depth_m
 
 
+def _pixel(p) -> tuple[float, float]:
+    """A pixel (a (2,) array or a pair of numbers) as two floats."""
+    u, v = p.tolist() if isinstance(p, np.ndarray) else p
+    return float(u), float(v)
+
+
 def triangulate_tip(rig: StereoRig, uv_left, uv_right, config: StereoConfig = StereoConfig()) -> StereoPoint:
     """Triangulate one tip from raw (distorted) pixels of the left and right image."""
     if uv_left is None or uv_right is None:
@@ -70,25 +77,23 @@ def triangulate_rectified_tip(rig: StereoRig, rl, rr, config: StereoConfig = Ste
     """As :func:`triangulate_tip`, for pixels already in the rectified images. ``covariance=False``
     leaves ``cov_cam`` out and keeps the pixels in ``rect`` (a check of a pair whose point is
     then replaced; :func:`with_covariance` adds it, the same floats)."""
-    rl = np.asarray(rl, dtype=np.float64)
-    rr = np.asarray(rr, dtype=np.float64)
-    epi = float(abs(rl[1] - rr[1]))
-    sign = 1.0 if rig.rectified_baseline_m > 0 else -1.0
-    disp = float(rl[0] - rr[0])
+    (ul, vl), (ur, vr) = rl, rr = _pixel(rl), _pixel(rr)
+    epi = abs(vl - vr)
+    disp = ul - ur
     dmin, dmax = _disparity_limits(rig, config)
-    if not np.isfinite(epi) or epi > config.max_epipolar_px:
+    if not math.isfinite(epi) or epi > config.max_epipolar_px:
         return StereoPoint(False, disparity_px=disp, epipolar_px=epi, reason=f"epipolar error {epi:.2f} px")
-    if not (dmin <= sign * disp <= dmax):
+    if not (dmin <= (disp if rig.rectified_baseline_m > 0 else -disp) <= dmax):
         return StereoPoint(False, disparity_px=disp, epipolar_px=epi,
                            reason=f"disparity {disp:.1f} px outside [{dmin:.1f}, {dmax:.1f}]")
-    v = 0.5 * (rl[1] + rr[1])
-    s = np.array([rl[0], v, disp, 1.0])
-    hom = rig.Q @ s
-    p_rect = hom[:3] / hom[3]
+    v = 0.5 * (vl + vr)
+    # Q · (u, v, d, 1) and its division in floats (the same floats as the array product)
+    h0, h1, h2, h3 = (a * ul + b * v + c * disp + e for a, b, c, e in rig.Q_rows)
+    p_rect = np.array([h0 / h3, h1 / h3, h2 / h3])
     R1 = rig.R1
     if not covariance:
         return StereoPoint(True, p_cam=R1.T @ p_rect, disparity_px=disp, epipolar_px=epi, rect=(rl, rr))
-    J_p = (rig.Q[:3, :3] - p_rect[:, None] * rig.Q[3, :3]) / hom[3]  # dp/d(u, v, d) (the outer product)
+    J_p = (rig.Q[:3, :3] - p_rect[:, None] * rig.Q[3, :3]) / h3  # dp/d(u, v, d) (the outer product)
     J = J_p @ _J_S
     cov_rect = (config.sigma_px ** 2) * (J @ J.T)
     p_cam = R1.T @ p_rect
@@ -212,8 +217,8 @@ class RefinedPair:
     radius_px: float = 0.0                 # rectified radius of the circle pair ("edges")
     points: tuple[int, int] = (0, 0)       # edge points used per view
     reason: str = ""
-    rect_left: np.ndarray | None = None    # the same pixels in the rectified images, where the method has them
-    rect_right: np.ndarray | None = None
+    rect_left: tuple[float, float] | None = None  # the same pixels in the rectified images, where the method has them
+    rect_right: tuple[float, float] | None = None
 
 
 def _unrectify_points(rig: StereoRig, pts: np.ndarray, side: str) -> np.ndarray:
@@ -386,22 +391,16 @@ def _refine_by_axis(rig: StereoRig, masks: dict | None, tip_left, tip_right, con
     disp = config.axis_weight * axis + (1.0 - config.axis_weight) * cap
     ul, ur = float(cl[0]), float(cl[0]) - disp
     return RefinedPair(True, _unrectify_point(rig, ul, v, "left"), _unrectify_point(rig, ur, v, "right"), 0.0,
-                       (sum(ll.points), sum(lr.points)), rect_left=np.array([ul, v]), rect_right=np.array([ur, v]))
+                       (sum(ll.points), sum(lr.points)), rect_left=(ul, v), rect_right=(ur, v))
 
 
 def _unrectify_point(rig: StereoRig, u: float, v: float, side: str) -> np.ndarray:
     """One rectified pixel back to raw pixels (2,): :func:`_unrectify_points`' arithmetic in plain floats
     for a view without distortion (two per refined pair: the arrays' overhead was most of their cost)."""
-    K, d, Rr, P = ((rig.K_left, rig.dist_left, rig.R1, rig.P1) if side == "left"
-                   else (rig.K_right, rig.dist_right, rig.R2, rig.P2))
-    if np.count_nonzero(d) or K[0, 1] != 0.0:
+    view = rig.rectified_view(side)
+    if not (view.undistorted and view.skew_free):
         return _unrectify_points(rig, (u, v), side)[0]
-    (p00, _, p02, _), (_, p11, p12, _), _ = P.tolist()
-    (k00, _, k02), (_, k11, k12), _ = K.tolist()
-    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = Rr.tolist()
-    x, y = (u - p02) / p00, (v - p12) / p11
-    iz = 1.0 / (x * r02 + y * r12 + r22)
-    return np.array([(x * r00 + y * r10 + r20) * iz * k00 + k02, (x * r01 + y * r11 + r21) * iz * k11 + k12])
+    return np.array(view.unrectify(u, v))
 
 
 def _cap_points(edge: np.ndarray, centre, direction, config: RefineConfig) -> np.ndarray | None:
