@@ -76,3 +76,30 @@ def test_tracker_window_confidence_loss_and_recovery():
     trk.predict(t)
     trk.update(t, (400.0, 100.0))  # found again far away: a fresh track
     assert trk.tracking and trk.confidence == 1.0 and np.allclose(trk.kf.position, [400, 100])
+
+
+def _cv_step(x, P, dt, q):
+    """One constant-velocity prediction written out (F and Q built for this step)."""
+    d = len(x) // 2
+    F = np.eye(2 * d)
+    F[:d, d:] = dt * np.eye(d)
+    Q = np.block([[q * dt ** 3 / 3 * np.eye(d), q * dt ** 2 / 2 * np.eye(d)],
+                  [q * dt ** 2 / 2 * np.eye(d), q * dt * np.eye(d)]])
+    return F @ x, F @ P @ F.T + Q
+
+
+@pytest.mark.parametrize("dim", [1, 2])
+def test_each_step_uses_its_own_interval_and_the_current_noise(dim):
+    # F and Q are kept per (dt, q): intervals that alternate, recur or change, and a new q, each take effect
+    kf = KalmanCV(dim, q=2e4, r=0.25)
+    kf.reset(np.arange(1.0, dim + 1))
+    kf.update(np.arange(1.0, dim + 1) + 0.5)
+    x, P = kf.x, kf.P
+    for k, dt in enumerate([1 / 30, 2 / 30 - 1 / 30, 1 / 30, 0.05, 1 / 30, 0.0, 0.05]):
+        if k == 4:
+            kf.q = 3e3
+        x, P = _cv_step(x, P, dt, kf.q)
+        kf.predict(dt)
+        np.testing.assert_allclose(kf.x, x, rtol=1e-12)
+        np.testing.assert_allclose(kf.P, P, rtol=1e-12)
+        x, P = kf.x, kf.P

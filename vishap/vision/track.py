@@ -23,6 +23,9 @@ from vishap._core.errors import ShapeError
 __all__ = ["KalmanCV", "TrackerConfig", "TipTracker"]
 
 
+_MAX_STEPS_KEPT = 64  # (dt, q) pairs whose F and Q a filter keeps
+
+
 class KalmanCV:
     """Constant-velocity Kalman filter; white-noise acceleration of spectral density ``q``.
 
@@ -31,6 +34,10 @@ class KalmanCV:
     dim: number of position coordinates ``d`` (state has ``2d`` entries).
     q: acceleration noise spectral density (units²/s³, e.g. px²/s³).
     r: measurement noise variance (units², e.g. px²).
+
+    ``F`` and ``Q`` follow from the step ``dt`` and ``q`` (assign ``q`` to change the noise): each
+    predict takes them from the pairs made for earlier steps of the same ``dt`` (a frame interval, a
+    difference of two frame times, takes a few float values over a sequence) or makes them anew.
     """
 
     def __init__(self, dim: int = 2, *, q: float = 1e5, r: float = 0.25, p0_pos: float = 4.0, p0_vel: float = 1e4):
@@ -49,8 +56,27 @@ class KalmanCV:
         self.S = np.eye(d)         # last innovation covariance
         self.misses = 0            # consecutive update(None) calls
         self.initialized = False
-        self._dt = None
+        self._dt = self._q = None   # the step and noise F and Q were made for
+        self._FQ: dict = {}         # (dt, q) → (F, Q): a frame interval recurs (the same float) every few frames
         self._I = np.eye(2 * d)
+
+    def _transition(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """``F`` and ``Q`` for a step of ``dt`` seconds (new arrays: a step never writes into them)."""
+        key = (dt, self.q)
+        FQ = self._FQ.get(key)
+        if FQ is None:
+            if len(self._FQ) >= _MAX_STEPS_KEPT:
+                self._FQ.clear()
+            d, q = self.dim, self.q
+            F, Q = np.eye(2 * d), np.zeros((2 * d, 2 * d))
+            q3, q2, q1 = q * dt ** 3 / 3, q * dt ** 2 / 2, q * dt
+            for i in range(d):
+                F[i, i + d] = dt
+                Q[i, i] = q3
+                Q[i, i + d] = Q[i + d, i] = q2
+                Q[i + d, i + d] = q1
+            FQ = self._FQ[key] = F, Q
+        return FQ
 
     def reset(self, z) -> None:
         """Start at position ``z`` with zero velocity and the initial covariance."""
@@ -66,19 +92,11 @@ class KalmanCV:
         """Propagate the state by ``dt`` seconds; returns the predicted position."""
         d = self.dim
         dt = float(dt)
-        if not (dt >= 0.0 and dt < np.inf):
+        if not (dt >= 0.0 and dt < math.inf):
             raise ShapeError(f"dt: expected a finite time step ≥ 0 s, got {dt}")
-        if dt != self._dt:  # F and Q depend on dt only: rebuild when it changes (the frame interval's
-            #   floats differ from frame to frame: entry by entry, no index arrays)
-            self._dt = dt
-            q = self.q
-            F, Q = self.F, self.Q
-            q3, q2, q1 = q * dt ** 3 / 3, q * dt ** 2 / 2, q * dt
-            for i in range(d):
-                F[i, i + d] = dt
-                Q[i, i] = q3
-                Q[i, i + d] = Q[i + d, i] = q2
-                Q[i + d, i + d] = q1
+        if dt != self._dt or self.q != self._q:
+            self.F, self.Q = self._transition(dt)
+            self._dt, self._q = dt, self.q
         self.x = self.F @ self.x
         self.P = self.F @ self.P @ self.F.T + self.Q
         self.x_prior, self.P_prior = self.x, self.P
