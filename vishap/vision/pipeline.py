@@ -224,7 +224,7 @@ class VisionPipeline:
         if sp.ok and self.config.filtered_output and all(self.trackers[s].kf.misses == 0 for s in ("left", "right")):
             # report the Kalman posteriors of both views (less pixel noise), triangulated the same way
             found = {s: self.trackers[s].kf.position.copy() for s in ("left", "right")}
-            spf = triangulate_rectified_tip(self.rig, *(self.rig.rectify_points_fast(found[s].reshape(1, 2), s)[0]
+            spf = triangulate_rectified_tip(self.rig, *(self.rig.rectify_point(*found[s].tolist(), s)
                                                        for s in ("left", "right")), self.config.stereo)
             if spf.ok and self.config.disparity_q > 0:
                 spf = self._filter_disparity(spf, sp.disparity_px, t)
@@ -311,13 +311,14 @@ class VisionPipeline:
         L, R = cands["left"], cands["right"]
         best, best_cost = None, np.inf
         rejected = []  # (rank sum, reason)
-        rect = {s: self.rig.rectify_points_fast(np.array([tp.uv for tp in cands[s]], dtype=np.float64), s)
-                for s in ("left", "right") if cands[s]}  # each candidate rectified once
+        rect = {s: [self.rig.rectify_point(*tp.uv.tolist(), s) for tp in cands[s]]
+                for s in ("left", "right")}  # each candidate rectified once
         if L and R and len(L) * len(R) > 1:
             # pairs off each other's epipolar line by more than the widest check of _match (the
             # occluded-pair one: max_epipolar_px plus the larger cap radius) fail it there with
             # this reason: say so without the checks
-            epi = np.abs(rect["left"][:, 1][:, None] - rect["right"][:, 1][None, :])
+            rows = {s: np.array([v for _, v in rect[s]]) for s in ("left", "right")}
+            epi = np.abs(rows["left"][:, None] - rows["right"][None, :])
             slack = (np.maximum.outer([tp.cap_radius_px for tp in L], [tp.cap_radius_px for tp in R])
                      if self.config.occluded_pairs else 0.0)
             far = epi > self.config.stereo.max_epipolar_px + slack
