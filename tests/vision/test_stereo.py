@@ -53,6 +53,18 @@ def test_epipolar_and_disparity_checks(ideal_rig):
     assert not triangulate_tip(ideal_rig, None, uv_r[0])
 
 
+def test_a_disparity_at_infinity_is_refused(ideal_rig):
+    # a rectification whose zero disparity lies elsewhere (Q[3, 3] ≠ 0): a pair at that disparity has no point
+    from vishap.vision.stereo import triangulate_rectified_tip
+
+    Q = ideal_rig.Q.copy()
+    Q[3, 3] = -20.0 * Q[3, 2]  # h = Q[3, 2]·d + Q[3, 3] = 0 at d = 20 px
+    ideal_rig.Q = Q
+    sp = triangulate_rectified_tip(ideal_rig, (320.0, 240.0), (300.0, 240.0))
+    assert not sp.ok and "infinity" in sp.reason
+    assert triangulate_rectified_tip(ideal_rig, (330.0, 240.0), (300.0, 240.0)).ok
+
+
 def test_dense_sgbm_depth_of_a_textured_plane(ideal_rig, rng):
     import cv2
 

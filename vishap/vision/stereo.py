@@ -89,6 +89,8 @@ def triangulate_rectified_tip(rig: StereoRig, rl, rr, config: StereoConfig = Ste
     v = 0.5 * (vl + vr)
     # Q · (u, v, d, 1) and its division in floats (the same floats as the array product)
     h0, h1, h2, h3 = (a * ul + b * v + c * disp + e for a, b, c, e in rig.Q_rows)
+    if h3 == 0.0:  # a rectification whose zero disparity is not at infinity (Q[3, 3] ≠ 0) puts this one there
+        return StereoPoint(False, disparity_px=disp, epipolar_px=epi, reason=f"disparity {disp:.1f} px is at infinity")
     p_rect = np.array([h0 / h3, h1 / h3, h2 / h3])
     R1 = rig.R1
     if not covariance:
