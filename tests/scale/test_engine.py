@@ -12,7 +12,7 @@ from vishap._core.errors import ConfigError
 from vishap.cli import main
 from vishap.scale import ClusterError, map_cases
 from vishap.scale.cli import seed_range
-from vishap.scale.engine import parse_address
+from vishap.scale.engine import engine, parse_address
 
 
 def _free_port() -> int:
@@ -78,3 +78,14 @@ def test_map_cases_serial_and_two_ray_workers_agree_in_order():
     assert [r[0] for r in ray_out] == serial
     assert os.getpid() not in {r[1] for r in ray_out}  # ran in Ray's workers, not here
     assert {r[2] for r in ray_out} == {"1"}  # renderer threads pinned per worker
+
+
+def test_a_local_run_starts_its_own_instance_whatever_address_the_environment_names(monkeypatch):
+    # RAY_ADDRESS names a cluster nobody runs: a local run (no --address) must not try to join it
+    # (Ray would join, or fail on the CPU count), and the variable is the user's again afterwards
+    dead = f"127.0.0.1:{_free_port()}"
+    monkeypatch.setenv("RAY_ADDRESS", dead)
+    with engine(workers=2) as e:
+        described = e.describe()
+    assert described["mode"] == "local-ray" and described["cluster_cpus"] == 2.0
+    assert os.environ["RAY_ADDRESS"] == dead

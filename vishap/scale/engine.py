@@ -12,6 +12,7 @@ the machine N times).
 from __future__ import annotations
 
 import contextlib
+import os
 import socket
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -90,6 +91,20 @@ class Engine:
 
 
 @contextlib.contextmanager
+def _own_local_instance() -> Iterator[None]:
+    """Let ``ray.init`` start an instance of this run's own: without an address Ray joins the instance
+    that ``RAY_ADDRESS`` or the last ``ray start`` on this machine names, and then refuses a CPU count.
+    ``address="local"`` covers the second; ``RAY_ADDRESS`` outranks even that, so it is set aside
+    while Ray starts (a cluster is asked for with ``--address``)."""
+    saved = os.environ.pop("RAY_ADDRESS", None)
+    try:
+        yield
+    finally:
+        if saved is not None:
+            os.environ["RAY_ADDRESS"] = saved
+
+
+@contextlib.contextmanager
 def engine(workers: int | None = None, address: str | None = None, *, threads_per_worker: int = 1) -> Iterator[Engine]:
     """Open a place to run tasks (see the module docstring).
 
@@ -118,7 +133,8 @@ def engine(workers: int | None = None, address: str | None = None, *, threads_pe
             except (ConnectionError, RuntimeError, ValueError) as exc:
                 raise ClusterError(f"cannot connect to the Ray cluster at {address} ({exc}); nothing was run") from None
         else:
-            ray.init(num_cpus=int(workers) * int(threads_per_worker), **common)
+            with _own_local_instance():
+                ray.init(address="local", num_cpus=int(workers) * int(threads_per_worker), **common)
     try:
         if workers is None:
             # the nodes' own records: the cluster's resource view lags behind a node that just joined
