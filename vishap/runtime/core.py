@@ -36,8 +36,8 @@ from vishap.robot.object_gain import ENGAGED, FREE, SURFACE
 from vishap.runtime.safety import TargetGuard, record_values_valid
 from vishap.world.predictor import near_predictor
 
-__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "ServoStep", "ServoTick", "GUARD_CODES",
-           "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
+__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "HOLD_BAND_M", "ServoStep", "ServoTick",
+           "GUARD_CODES", "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
 
 #: the guard's action as logged (``idle``: no finger seen yet, the servo holds the arm where it is)
 GUARD_CODES = {"track": 0, "hold": 1, "retreat": 2, "idle": 3}
@@ -46,6 +46,8 @@ LAMBDA_CODES = {FREE: 0, SURFACE: 1, ENGAGED: 2}
 _NAN3 = (math.nan, math.nan, math.nan)
 #: depth at which a law's stiffness at its surface is read (m): inside every law's first spring
 _HOLD_PROBE_M = 1e-5
+#: the band over the surface in which the renderer's hold leaves the face to the arm's own friction (m)
+HOLD_BAND_M = 1e-4
 
 
 @dataclass
@@ -188,12 +190,18 @@ class ContactRenderer:
     along the normal, and the light arm floats off (the law's own push launched it 1–6 mm above
     the surface in the demos, flipping Λ back to free and back, and a landing finger met a loose
     device that bounced off its pad). The renderer then holds the device at the surface from above
-    with the law's own stiffness and damping at the surface (:attr:`F_hold`, pulling only, fading
-    out over the last half of ``release_m``), so the face waits exactly at the virtual surface,
-    the force is continuous across it and a finger lands on a device that is held.
+    (:attr:`F_hold`, pulling only, fading out over the last half of ``release_m``) with the law's own
+    stiffness and damping at the surface, on the height beyond a band of :data:`HOLD_BAND_M`, plus
+    the arm's Coulomb friction at the tip (``hold_friction_n``, from the device's parameters): above
+    the band the pull overcomes the friction and brings the face into the band; inside the band the
+    hold gives nothing and the arm's friction keeps the face where it is. A spring alone could bring
+    the face only within ``hold_friction_n / k`` of the surface (50–114 µm on the demos' laws) and
+    kept pulling there, so a landing finger's light push (0.03 N) unstuck the arm and the face fell
+    away under the pad (contact made twice).
     """
 
-    def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003, dt: float = 0.001):
+    def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003, dt: float = 0.001,
+                 hold_friction_n: float = 0.0):
         from vishap.robot.object_gain import ObjectGainScheduler
         from vishap.world.force_laws import make_law
 
@@ -205,6 +213,7 @@ class ContactRenderer:
         #: each law's stiffness and damping at its surface: the hold above it
         self._hold = [(law.normal_force(_HOLD_PROBE_M) / _HOLD_PROBE_M, float(getattr(law, "c", 0.0)))
                       for law in self.laws]
+        self.hold_friction_n = float(hold_friction_n)
         self.F_hold = None  # the hold's force (robot frame, N) at the last update, or None
 
     def reset(self) -> None:
@@ -249,13 +258,15 @@ class ContactRenderer:
         self.F_hold = None
         rel = gain.release_m
         if F is None and gain.state != FREE and -rel < depth <= 0.0:
-            k, c = self._hold[self.subject]
-            n = law.normal
-            vn = float(n[0] * v_device[0] + n[1] * v_device[1] + n[2] * v_device[2])
-            w = min(1.0, 2.0 * (rel + depth) / rel)  # 1 down to −release_m/2, then fading to 0 at −release_m
-            f = min(0.0, (k * depth - c * vn) * w)  # pulls toward the surface only
-            if f < 0.0:
-                self.F_hold = (float(n[0]) * f, float(n[1]) * f, float(n[2]) * f)
+            excess = -depth - HOLD_BAND_M  # the height beyond the band
+            if excess > 0.0:
+                k, c = self._hold[self.subject]
+                n = law.normal
+                vn = float(n[0] * v_device[0] + n[1] * v_device[1] + n[2] * v_device[2])
+                w = min(1.0, 2.0 * (rel + depth) / rel)  # 1 down to −release_m/2, then fading to 0 at −release_m
+                f = min(0.0, -(k * excess + self.hold_friction_n + c * vn) * w)  # pulls toward the surface only
+                if f < 0.0:
+                    self.F_hold = (float(n[0]) * f, float(n[1]) * f, float(n[2]) * f)
         return F, L, scale
 
 
@@ -317,8 +328,9 @@ class ServoStep:
         self.guard = guard
         self.mount = np.asarray(mount_offset, float).reshape(3)
         self.press_m = float(press_m)
+        params = self.device.params
         self.contact = ContactRenderer(objects, max_force_n=float(self.device.limits.peak_force_n), engage_m=engage_m,
-                                       dt=float(self.device.params.dt))
+                                       dt=float(params.dt), hold_friction_n=float(params.coulomb_friction_n))
         self.last_action = "idle"
         self._key = None
         self._retreat_key = None
