@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from vishap.runtime.core import HOLD_BAND_M, ContactRenderer, SceneStep, TargetRecord
+from vishap.runtime.core import HOLD_BAND_M, ContactRenderer, RestPlay, SceneStep, TargetRecord
 from vishap.world.scene import load_scene
 from vishap.world.world import World
 
@@ -161,6 +161,23 @@ def test_the_servo_step_hold_cancels_the_device_friction_from_its_parameters():
     dev = open_device("sim", passive_object=scene.passive_object.for_mujoco())
     step = make_servo_step(dev, scene)
     assert step.contact.hold_friction_n == dev.params.coulomb_friction_n > 0.0
+
+
+def test_the_rest_play_holds_the_lateral_target_under_a_resting_finger_and_follows_larger_moves():
+    n = (0.0, 0.0, 1.0)
+    play = RestPlay(play_m=0.0005, near_m=0.002)
+    X0 = np.array([0.1, 0.0, 0.05])
+    assert play.apply(X0, n, 0.0005, True) is X0  # the play starts where the target is: no jump
+    out = play.apply(X0 + [0.0003, -0.0002, 0.0001], n, 0.0005, True)
+    assert np.allclose(out, X0 + [0.0, 0.0, 0.0001])  # sideways jitter absorbed, the normal passes
+    out = play.apply(X0 + [0.0008, 0.0, 0.0], n, 0.0, True)
+    assert np.allclose(out, X0 + [0.0003, 0.0, 0.0])  # a larger move followed, play_m behind
+    out = play.apply(X0 + [0.0006, 0.0, 0.0], n, 0.0, True)
+    assert np.allclose(out, X0 + [0.0003, 0.0, 0.0])  # and back within the play: still
+    X = X0 + [0.0006, 0.0, 0.0]
+    assert play.apply(X, n, 0.003, True) is X  # the finger above near_m: the target passes
+    assert play.apply(X, n, 0.0, False) is X  # free motion: the target passes
+    assert play.apply(X, n, float("nan"), True) is X  # no finger estimate: the target passes
 
 
 class _LandingFinger:

@@ -36,7 +36,7 @@ from vishap.robot.object_gain import ENGAGED, FREE, SURFACE
 from vishap.runtime.safety import TargetGuard, record_values_valid
 from vishap.world.predictor import near_predictor
 
-__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "HOLD_BAND_M", "ServoStep", "ServoTick",
+__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "HOLD_BAND_M", "RestPlay", "ServoStep", "ServoTick",
            "GUARD_CODES", "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
 
 #: the guard's action as logged (``idle``: no finger seen yet, the servo holds the arm where it is)
@@ -270,6 +270,46 @@ class ContactRenderer:
         return F, L, scale
 
 
+class RestPlay:
+    """A sideways play (backlash) on the servo's target while a finger rests on the face.
+
+    :meth:`apply` passes the target through unchanged unless it is told the finger rests on the face
+    (the object gain renders the surface and the tracked pad is within ``near_m`` over the device's
+    face); then the target's part along the surface moves only as far as it must to stay within
+    ``play_m`` of the input (no jump when the play starts, smaller moves absorbed), its part along
+    the normal passes. Why: under a resting finger the world's target follows each sample's
+    projection of the finger (0.1–0.3 mm of jitter), and with Λ's normal released the lateral servo
+    dragged the face sideways through the arm's friction, down and away from under the pad (contact
+    made twice)."""
+
+    def __init__(self, play_m: float = 0.0005, near_m: float = 0.002):
+        self.play_m, self.near_m = float(play_m), float(near_m)
+        self._a = None  # the target last given out while the play acts (None: it does not)
+
+    def reset(self) -> None:
+        self._a = None
+
+    def apply(self, X, normal, gap_m: float, surface: bool):
+        """``X`` (3, or None) with the play applied; ``gap_m`` the tracked pad's height over the face
+        (NaN: no finger), ``surface`` whether the object gain renders the surface, ``normal`` its normal."""
+        if X is None or normal is None or not (surface and gap_m < self.near_m):
+            self._a = None
+            return X
+        a = self._a
+        if a is None:
+            self._a = X
+            return X
+        n = normal
+        d = (X[0] - a[0], X[1] - a[1], X[2] - a[2])
+        dn = d[0] * n[0] + d[1] * n[1] + d[2] * n[2]
+        tx, ty, tz = d[0] - dn * n[0], d[1] - dn * n[1], d[2] - dn * n[2]  # the move along the surface
+        m = math.sqrt(tx * tx + ty * ty + tz * tz)
+        s = 1.0 - self.play_m / m if m > self.play_m else 0.0
+        out = np.array((a[0] + s * tx + dn * n[0], a[1] + s * ty + dn * n[1], a[2] + s * tz + dn * n[2]))
+        self._a = out
+        return out
+
+
 def finger_approach(rec: TargetRecord, t: float, p_device, normal):
     """``(distance m, time to touch s, height m)`` of the record's tracked finger (extrapolated to ``t``)
     from the device's contact point: the travel limiter's speed caps and the object gain's early
@@ -317,11 +357,12 @@ class ServoStep:
     rendering on the previous tick and the device is pushed in deeper than ``press_m`` under the
     subject's surface (a real device knows this from its own encoders; no camera is involved).
     The travel limiter is given the device's distance to the tracked finger (the record's pad point
-    extrapolated to now), so the device slows down near the finger.
+    extrapolated to now), so the device slows down near the finger. Under a finger resting on the face
+    the target's sideways jitter is taken up by a play (:class:`RestPlay`).
     """
 
     def __init__(self, servo, guard: TargetGuard, objects, *, mount_offset, engage_m: float = 0.0003,
-                 press_m: float = 0.0005):
+                 press_m: float = 0.0005, play: RestPlay | None = None):
         self.servo = servo
         self.device = servo.device
         self.controller = servo.controller
@@ -331,6 +372,7 @@ class ServoStep:
         params = self.device.params
         self.contact = ContactRenderer(objects, max_force_n=float(self.device.limits.peak_force_n), engage_m=engage_m,
                                        dt=float(params.dt), hold_friction_n=float(params.coulomb_friction_n))
+        self.play = RestPlay() if play is None else play
         self.last_action = "idle"
         self._key = None
         self._retreat_key = None
@@ -346,6 +388,7 @@ class ServoStep:
         """Start a new run on the same device: guard, laws, object gain and target keys forgotten."""
         self.guard.reset()
         self.contact.reset()
+        self.play.reset()
         self.last_action = "idle"
         self._key = self._retreat_key = None
         self._rendering = False
@@ -386,6 +429,7 @@ class ServoStep:
         F_law, L, scale = self.contact.update(t, p_dev, dev.v_robot, rec.subject, rec.imminent, rec.in_contact, action,
                                               touch_in)
         self._rendering = F_law is not None
+        X_ee = self.play.apply(X_ee, normal, gap, self.contact.gain.state != FREE)
         ctrl = self.controller
         ctrl.set_lambda_robot(L)
         if self.servo.travel is not None:  # travel resumes from the arm where Λ let go
