@@ -180,6 +180,33 @@ def test_the_rest_play_holds_the_lateral_target_under_a_resting_finger_and_follo
     assert play.apply(X, n, float("nan"), True) is X  # no finger estimate: the target passes
 
 
+def test_the_servo_step_takes_up_a_resting_fingers_sideways_jitter_at_the_surface():
+    """A finger resting on the face, its lateral estimate jittering 0.2 mm per record: once the surface is
+    rendered the servo's target stays put (the play); free of the finger, the target follows again."""
+    from vishap.robot import kinematics
+    from vishap.runtime.assembly import make_servo_step, open_device
+
+    scene = load_scene("wall")
+    dev = open_device("sim", passive_object=scene.passive_object.for_mujoco())
+    step = make_servo_step(dev, scene)
+    top = scene.objects[0].centre
+    X0 = np.asarray(top - step.mount)
+    dev.reset(kinematics.ik(X0))
+    xs = []
+    for k in range(600):
+        t = k * 1e-3
+        j = 0.0002 * (-1) ** (k // 33)  # a new lateral estimate every vision frame
+        rec = TargetRecord(k // 33 + 1, tuple(X0 + [j, 0.0, 0.0]), (k // 33) * 0.033, 1.0, True, True, 0, True, True,
+                           tuple(top + [j, 0.0, 0.0]), (0.0, 0.0, 0.0), t)
+        tk = step.tick(t, rec)
+        if tk.lambda_state == 1:
+            xs.append(tk.X_ee[0] - X0[0])
+    assert len(xs) > 300 and np.ptp(xs[-300:]) == 0.0  # at the surface the target stood still
+    rec = TargetRecord(1000, tuple(X0 + [0.0002, 0.0, 0.0]), 0.7, 1.0, True, True, 0, True, True,
+                       tuple(top + [0.0002, 0.0, 0.01]), (0.0, 0.0, 0.0), 0.7)
+    assert step.tick(0.7, rec).X_ee[0] - X0[0] == pytest.approx(0.0002)  # the finger 10 mm up: no play
+
+
 class _LandingFinger:
     """A finger that comes down at 20 mm/s, stops on the face and then presses at 2 mm/s."""
 
