@@ -36,8 +36,8 @@ from vishap.robot.object_gain import ENGAGED, FREE, SURFACE
 from vishap.runtime.safety import TargetGuard, record_values_valid
 from vishap.world.predictor import near_predictor
 
-__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "HOLD_BAND_M", "RestPlay", "ServoStep", "ServoTick",
-           "GUARD_CODES", "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
+__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "HOLD_BAND_M", "REST_NEAR_M", "RestPlay", "ServoStep",
+           "ServoTick", "GUARD_CODES", "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
 
 #: the guard's action as logged (``idle``: no finger seen yet, the servo holds the arm where it is)
 GUARD_CODES = {"track": 0, "hold": 1, "retreat": 2, "idle": 3}
@@ -48,6 +48,9 @@ _NAN3 = (math.nan, math.nan, math.nan)
 _HOLD_PROBE_M = 1e-5
 #: the band over the surface in which the renderer's hold leaves the face to the arm's own friction (m)
 HOLD_BAND_M = 1e-4
+#: the tracked pad this close over the device's face (m) rests on it or is about to land: the hold no
+#: longer cancels the arm's friction and the servo's target gets a sideways play (:class:`RestPlay`)
+REST_NEAR_M = 0.002
 
 
 @dataclass
@@ -197,7 +200,10 @@ class ContactRenderer:
     hold gives nothing and the arm's friction keeps the face where it is. A spring alone could bring
     the face only within ``hold_friction_n / k`` of the surface (50–114 µm on the demos' laws) and
     kept pulling there, so a landing finger's light push (0.03 N) unstuck the arm and the face fell
-    away under the pad (contact made twice).
+    away under the pad (contact made twice). Once the tracked finger is within :data:`REST_NEAR_M` over
+    the face the friction is no longer cancelled (the spring beyond the band still pulls): a pull that
+    overcomes the friction, added to a landing finger's push, ran the face away from the pad faster than
+    the finger followed (contact made twice on a face caught just over the band).
     """
 
     def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003, dt: float = 0.001,
@@ -235,9 +241,10 @@ class ContactRenderer:
         return LAMBDA_CODES[self.gain.state]
 
     def update(self, t: float, p_device, v_device, subject: int, imminent: bool, in_contact: bool, action: str,
-               touch_in_s: float = math.inf):
+               touch_in_s: float = math.inf, gap_m: float = math.nan):
         """``(F_law or None, Λ robot frame 3×3, force scale)`` for servo time ``t``; ``touch_in_s``: the
-        predicted time until the tracked finger reaches the device's face (the scheduler's early handover)."""
+        predicted time until the tracked finger reaches the device's face (the scheduler's early handover);
+        ``gap_m``: the tracked pad's height over the face (NaN: no finger)."""
         gain = self.gain
         if subject != self.subject:
             if self.subject >= 0:
@@ -264,7 +271,8 @@ class ContactRenderer:
                 n = law.normal
                 vn = float(n[0] * v_device[0] + n[1] * v_device[1] + n[2] * v_device[2])
                 w = min(1.0, 2.0 * (rel + depth) / rel)  # 1 down to −release_m/2, then fading to 0 at −release_m
-                f = min(0.0, -(k * excess + self.hold_friction_n + c * vn) * w)  # pulls toward the surface only
+                fr = 0.0 if gap_m < REST_NEAR_M else self.hold_friction_n
+                f = min(0.0, -(k * excess + fr + c * vn) * w)  # pulls toward the surface only
                 if f < 0.0:
                     self.F_hold = (float(n[0]) * f, float(n[1]) * f, float(n[2]) * f)
         return F, L, scale
@@ -282,7 +290,7 @@ class RestPlay:
     dragged the face sideways through the arm's friction, down and away from under the pad (contact
     made twice)."""
 
-    def __init__(self, play_m: float = 0.0005, near_m: float = 0.002):
+    def __init__(self, play_m: float = 0.0005, near_m: float = REST_NEAR_M):
         self.play_m, self.near_m = float(play_m), float(near_m)
         self._a = None  # the target last given out while the play acts (None: it does not)
 
@@ -427,7 +435,7 @@ class ServoStep:
         normal = None if rec.subject < 0 else self._normals[rec.subject]
         finger_m, touch_in, gap = finger_approach(rec, t, p_dev, normal)
         F_law, L, scale = self.contact.update(t, p_dev, dev.v_robot, rec.subject, rec.imminent, rec.in_contact, action,
-                                              touch_in)
+                                              touch_in, gap)
         self._rendering = F_law is not None
         X_ee = self.play.apply(X_ee, normal, gap, self.contact.gain.state != FREE)
         ctrl = self.controller
