@@ -153,8 +153,12 @@ def test_the_renderer_holds_a_device_above_the_surface_there_while_it_renders_th
     c.update(0.004, np.array([0.2, 0.0, top + 0.0003]), z0, 0, True, False, "track", gap_m=2.0 * REST_NEAR_M)
     assert c.F_hold[2] == pytest.approx(-800.0 * (0.0003 - HOLD_BAND_M) - fr)  # the finger further up: as before
     for h in (HOLD_BAND_M - 1e-7, 0.5 * HOLD_BAND_M, 1e-7):
-        c.update(0.005, np.array([0.2, 0.0, top + h]), np.array([0.0, 0.0, 0.05]), 0, True, False, "track")
+        c.update(0.005, np.array([0.2, 0.0, top + h]), z0, 0, True, False, "track")
         assert c.F_hold is None  # inside the band the arm's friction holds the face: no pull
+        c.update(0.005, np.array([0.2, 0.0, top + h]), np.array([0.0, 0.0, -0.05]), 0, True, False, "track")
+        assert c.F_hold is None  # nor against a face moving towards the surface
+        c.update(0.005, np.array([0.2, 0.0, top + h]), np.array([0.0, 0.0, 0.05]), 0, True, False, "track")
+        assert c.F_hold[2] == pytest.approx(-2.0 * 0.05)  # only the damping of a face moving away
     c.update(0.006, np.array([0.2, 0.0, top + 0.0009]), z0, 0, True, False, "track")
     assert -800.0 * 0.0005 - fr < c.F_hold[2] < 0.0  # fading out before the release height: no step there
     c.update(0.007, np.array([0.2, 0.0, top + 0.0002]), z0, 0, False, False, "track")

@@ -197,7 +197,8 @@ class ContactRenderer:
     stiffness and damping at the surface, on the height beyond a band of :data:`HOLD_BAND_M`, plus
     the arm's Coulomb friction at the tip (``hold_friction_n``, from the device's parameters): above
     the band the pull overcomes the friction and brings the face into the band; inside the band the
-    hold gives nothing and the arm's friction keeps the face where it is. A spring alone could bring
+    hold gives only the damping of a face moving away (so it is continuous with the law's at the
+    surface and over the band's edge) and the arm's friction keeps the face where it is. A spring alone could bring
     the face only within ``hold_friction_n / k`` of the surface (50–114 µm on the demos' laws) and
     kept pulling there, so a landing finger's light push (0.03 N) unstuck the arm and the face fell
     away under the pad (contact made twice). Once the tracked finger is within :data:`REST_NEAR_M` over
@@ -265,16 +266,18 @@ class ContactRenderer:
         self.F_hold = None
         rel = gain.release_m
         if F is None and gain.state != FREE and -rel < depth <= 0.0:
+            k, c = self._hold[self.subject]
+            n = law.normal
+            vn = float(n[0] * v_device[0] + n[1] * v_device[1] + n[2] * v_device[2])
+            w = min(1.0, 2.0 * (rel + depth) / rel)  # 1 down to −release_m/2, then fading to 0 at −release_m
             excess = -depth - HOLD_BAND_M  # the height beyond the band
             if excess > 0.0:
-                k, c = self._hold[self.subject]
-                n = law.normal
-                vn = float(n[0] * v_device[0] + n[1] * v_device[1] + n[2] * v_device[2])
-                w = min(1.0, 2.0 * (rel + depth) / rel)  # 1 down to −release_m/2, then fading to 0 at −release_m
                 fr = 0.0 if gap_m < REST_NEAR_M else self.hold_friction_n
                 f = min(0.0, -(k * excess + fr + c * vn) * w)  # pulls toward the surface only
-                if f < 0.0:
-                    self.F_hold = (float(n[0]) * f, float(n[1]) * f, float(n[2]) * f)
+            else:  # in the band: only the damping of a face moving away, continuous with the law's at the surface
+                f = min(0.0, -c * vn * w)
+            if f < 0.0:
+                self.F_hold = (float(n[0]) * f, float(n[1]) * f, float(n[2]) * f)
         return F, L, scale
 
 
