@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from vishap.runtime.core import HOLD_BAND_M, REST_NEAR_M, ContactRenderer, RestPlay, SceneStep, TargetRecord
+from vishap.runtime.core import HOLD_BAND_M, ContactRenderer, RestPlay, SceneStep, TargetRecord
 from vishap.world.scene import load_scene
 from vishap.world.world import World
 
@@ -128,8 +128,8 @@ def test_servo_step_holds_a_pressed_device_while_vision_has_lost_the_finger_and_
 
 def test_the_renderer_holds_a_device_above_the_surface_there_while_it_renders_the_surface():
     """Over the band the hold pulls with the law's spring on the height beyond it, its damping and the
-    arm's friction (so it brings the face into the band; not under a landing finger); inside the band it
-    leaves the face alone."""
+    arm's friction (so it brings the face into the band); inside the band only the damping of a face
+    moving away."""
     scene = load_scene("wall")
     fr = 0.04
     c = ContactRenderer(scene.objects, max_force_n=8.5, hold_friction_n=fr)
@@ -146,12 +146,6 @@ def test_the_renderer_holds_a_device_above_the_surface_there_while_it_renders_th
     assert c.F_hold[2] == pytest.approx(-800.0 * (0.0003 - HOLD_BAND_M) - fr - 2.0 * 0.05)  # and its damping, moving away
     c.update(0.004, np.array([0.2, 0.0, top + HOLD_BAND_M + 1e-7]), z0, 0, True, False, "track")
     assert c.F_hold[2] == pytest.approx(-fr, abs=1e-3)  # just over the band: the friction's worth
-    # a finger about to land on the face (tracked within REST_NEAR_M over it): the spring alone, so that
-    # the pull and the finger's push do not run the face away from the pad
-    c.update(0.004, np.array([0.2, 0.0, top + 0.0003]), z0, 0, True, False, "track", gap_m=0.5 * REST_NEAR_M)
-    assert c.F_hold[2] == pytest.approx(-800.0 * (0.0003 - HOLD_BAND_M))
-    c.update(0.004, np.array([0.2, 0.0, top + 0.0003]), z0, 0, True, False, "track", gap_m=2.0 * REST_NEAR_M)
-    assert c.F_hold[2] == pytest.approx(-800.0 * (0.0003 - HOLD_BAND_M) - fr)  # the finger further up: as before
     for h in (HOLD_BAND_M - 1e-7, 0.5 * HOLD_BAND_M, 1e-7):
         c.update(0.005, np.array([0.2, 0.0, top + h]), z0, 0, True, False, "track")
         assert c.F_hold is None  # inside the band the arm's friction holds the face: no pull

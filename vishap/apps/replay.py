@@ -155,9 +155,9 @@ def replay(log_path, *, out=None, atol: float = 0.0, progress: bool = False) -> 
         else:
             rec = records[int(sv["record_seq"][i])]
             t_i, p_i = float(sv["t"][i]), sv["device_point"][i]
-            _, touch_in, gap = finger_approach(rec, t_i, p_i, None if rec.subject < 0 else scene.objects[rec.subject].normal)
+            _, touch_in, _ = finger_approach(rec, t_i, p_i, None if rec.subject < 0 else scene.objects[rec.subject].normal)
             F, _, _ = contact.update(t_i, p_i, sv["v_device"][i], rec.subject, rec.imminent, rec.in_contact,
-                                     action_of[int(sv["guard"][i])], touch_in, gap)
+                                     action_of[int(sv["guard"][i])], touch_in)
             if F is not None:
                 F_law_new[i] = F
             if contact.F_hold is not None:

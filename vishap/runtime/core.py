@@ -36,7 +36,7 @@ from vishap.robot.object_gain import ENGAGED, FREE, SURFACE
 from vishap.runtime.safety import TargetGuard, record_values_valid
 from vishap.world.predictor import near_predictor
 
-__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "HOLD_BAND_M", "REST_NEAR_M", "RestPlay", "ServoStep",
+__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "HOLD_BAND_M", "RestPlay", "ServoStep",
            "ServoTick", "GUARD_CODES", "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
 
 #: the guard's action as logged (``idle``: no finger seen yet, the servo holds the arm where it is)
@@ -47,10 +47,7 @@ _NAN3 = (math.nan, math.nan, math.nan)
 #: depth at which a law's stiffness at its surface is read (m): inside every law's first spring
 _HOLD_PROBE_M = 1e-5
 #: the band over the surface in which the renderer's hold leaves the face to the arm's own friction (m)
-HOLD_BAND_M = 1e-4
-#: the tracked pad this close over the device's face (m) rests on it or is about to land: the hold no
-#: longer cancels the arm's friction and the servo's target gets a sideways play (:class:`RestPlay`)
-REST_NEAR_M = 0.002
+HOLD_BAND_M = 5e-5
 
 
 @dataclass
@@ -196,15 +193,14 @@ class ContactRenderer:
     (:attr:`F_hold`, pulling only, fading out over the last half of ``release_m``) with the law's own
     stiffness and damping at the surface, on the height beyond a band of :data:`HOLD_BAND_M`, plus
     the arm's Coulomb friction at the tip (``hold_friction_n``, from the device's parameters): above
-    the band the pull overcomes the friction and brings the face into the band; inside the band the
-    hold gives only the damping of a face moving away (so it is continuous with the law's at the
-    surface and over the band's edge) and the arm's friction keeps the face where it is. A spring alone could bring
+    the band the pull overcomes the friction and brings the face into the band; inside it the hold
+    gives only the damping of a face moving away (continuous with the law's at the surface and over
+    the band's edge), and the arm's friction keeps the face where it is. A spring alone could bring
     the face only within ``hold_friction_n / k`` of the surface (50–114 µm on the demos' laws) and
     kept pulling there, so a landing finger's light push (0.03 N) unstuck the arm and the face fell
-    away under the pad (contact made twice). Once the tracked finger is within :data:`REST_NEAR_M` over
-    the face the friction is no longer cancelled (the spring beyond the band still pulls): a pull that
-    overcomes the friction, added to a landing finger's push, ran the face away from the pad faster than
-    the finger followed (contact made twice on a face caught just over the band).
+    away under the pad (contact made twice). The band is narrow because the demos' fingers come to
+    rest at the surface: a face waiting higher is pushed down that far by the landing pad and, light,
+    ran ahead of it (contact made twice on faces waiting 0.1 mm up).
     """
 
     def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003, dt: float = 0.001,
@@ -242,10 +238,9 @@ class ContactRenderer:
         return LAMBDA_CODES[self.gain.state]
 
     def update(self, t: float, p_device, v_device, subject: int, imminent: bool, in_contact: bool, action: str,
-               touch_in_s: float = math.inf, gap_m: float = math.nan):
+               touch_in_s: float = math.inf):
         """``(F_law or None, Λ robot frame 3×3, force scale)`` for servo time ``t``; ``touch_in_s``: the
-        predicted time until the tracked finger reaches the device's face (the scheduler's early handover);
-        ``gap_m``: the tracked pad's height over the face (NaN: no finger)."""
+        predicted time until the tracked finger reaches the device's face (the scheduler's early handover)."""
         gain = self.gain
         if subject != self.subject:
             if self.subject >= 0:
@@ -272,8 +267,7 @@ class ContactRenderer:
             w = min(1.0, 2.0 * (rel + depth) / rel)  # 1 down to −release_m/2, then fading to 0 at −release_m
             excess = -depth - HOLD_BAND_M  # the height beyond the band
             if excess > 0.0:
-                fr = 0.0 if gap_m < REST_NEAR_M else self.hold_friction_n
-                f = min(0.0, -(k * excess + fr + c * vn) * w)  # pulls toward the surface only
+                f = min(0.0, -(k * excess + self.hold_friction_n + c * vn) * w)  # pulls toward the surface only
             else:  # in the band: only the damping of a face moving away, continuous with the law's at the surface
                 f = min(0.0, -c * vn * w)
             if f < 0.0:
@@ -293,7 +287,7 @@ class RestPlay:
     dragged the face sideways through the arm's friction, down and away from under the pad (contact
     made twice)."""
 
-    def __init__(self, play_m: float = 0.0005, near_m: float = REST_NEAR_M):
+    def __init__(self, play_m: float = 0.0005, near_m: float = 0.002):
         self.play_m, self.near_m = float(play_m), float(near_m)
         self._a = None  # the target last given out while the play acts (None: it does not)
 
@@ -438,7 +432,7 @@ class ServoStep:
         normal = None if rec.subject < 0 else self._normals[rec.subject]
         finger_m, touch_in, gap = finger_approach(rec, t, p_dev, normal)
         F_law, L, scale = self.contact.update(t, p_dev, dev.v_robot, rec.subject, rec.imminent, rec.in_contact, action,
-                                              touch_in, gap)
+                                              touch_in)
         self._rendering = F_law is not None
         X_ee = self.play.apply(X_ee, normal, gap, self.contact.gain.state != FREE)
         ctrl = self.controller
