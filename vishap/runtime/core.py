@@ -36,7 +36,7 @@ from vishap.robot.object_gain import ENGAGED, FREE, SURFACE
 from vishap.runtime.safety import TargetGuard, record_values_valid
 from vishap.world.predictor import near_predictor
 
-__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "HOLD_BAND_M", "HOLD_ON_M", "RestPlay", "ServoStep",
+__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "HOLD_BAND_M", "RestPlay", "ServoStep",
            "ServoTick", "GUARD_CODES", "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
 
 #: the guard's action as logged (``idle``: no finger seen yet, the servo holds the arm where it is)
@@ -48,10 +48,6 @@ _NAN3 = (math.nan, math.nan, math.nan)
 _HOLD_PROBE_M = 1e-5
 #: the band over the surface in which the renderer's hold leaves the face to the arm's own friction (m)
 HOLD_BAND_M = 5e-5
-#: the height over the surface (m) at which the hold starts pulling a face back into the band: higher
-#: than the band, so that a face resting at the band's edge does not switch the pull on and off as its
-#: encoder reading flickers by a count
-HOLD_ON_M = 7.5e-5
 
 
 @dataclass
@@ -197,10 +193,9 @@ class ContactRenderer:
     (:attr:`F_hold`, pulling only, fading out over the last half of ``release_m``) with the law's own
     stiffness and damping at the surface, on the height beyond a band of :data:`HOLD_BAND_M`, plus
     the arm's Coulomb friction at the tip (``hold_friction_n``, from the device's parameters): above
-    the band the pull overcomes the friction and brings the face into the band (it starts once the face
-    is :data:`HOLD_ON_M` up and lasts until the face is back in the band); inside it the hold gives only
-    the damping of a face moving away (continuous with the law's at the surface and over the band's
-    edge), and the arm's friction keeps the face where it is. A spring alone could bring
+    the band the pull overcomes the friction and brings the face into the band; inside it the hold
+    gives only the damping of a face moving away (continuous with the law's at the surface and over
+    the band's edge), and the arm's friction keeps the face where it is. A spring alone could bring
     the face only within ``hold_friction_n / k`` of the surface (50–114 µm on the demos' laws) and
     kept pulling there, so a landing finger's light push (0.03 N) unstuck the arm and the face fell
     away under the pad (contact made twice). The band is narrow because the demos' fingers come to
@@ -223,7 +218,6 @@ class ContactRenderer:
                       for law in self.laws]
         self.hold_friction_n = float(hold_friction_n)
         self.F_hold = None  # the hold's force (robot frame, N) at the last update, or None
-        self._pulling = False  # the hold pulls the face back into its band
 
     def reset(self) -> None:
         for law in self.laws:
@@ -233,7 +227,6 @@ class ContactRenderer:
         self.subject = -1
         self.depth = math.nan
         self.F_hold = None
-        self._pulling = False
 
     @property
     def law(self):
@@ -267,21 +260,18 @@ class ContactRenderer:
             law.reset()
         self.F_hold = None
         rel = gain.release_m
-        pulling = False
         if F is None and gain.state != FREE and -rel < depth <= 0.0:
             k, c = self._hold[self.subject]
             n = law.normal
             vn = float(n[0] * v_device[0] + n[1] * v_device[1] + n[2] * v_device[2])
             w = min(1.0, 2.0 * (rel + depth) / rel)  # 1 down to −release_m/2, then fading to 0 at −release_m
             excess = -depth - HOLD_BAND_M  # the height beyond the band
-            pulling = excess > 0.0 and (self._pulling or -depth > HOLD_ON_M)
-            if pulling:
+            if excess > 0.0:
                 f = min(0.0, -(k * excess + self.hold_friction_n + c * vn) * w)  # pulls toward the surface only
-            else:  # only the damping of a face moving away, continuous with the law's at the surface
+            else:  # in the band: only the damping of a face moving away, continuous with the law's at the surface
                 f = min(0.0, -c * vn * w)
             if f < 0.0:
                 self.F_hold = (float(n[0]) * f, float(n[1]) * f, float(n[2]) * f)
-        self._pulling = pulling
         return F, L, scale
 
 
