@@ -279,32 +279,39 @@ class RestPlay:
     """A sideways play (backlash) on the servo's target while a finger rests on the face.
 
     :meth:`apply` passes the target through unchanged unless it is told the finger rests on the face
-    (the object gain renders the surface and the tracked pad is within ``near_m`` over the device's
-    face); then the target's part along the surface moves only as far as it must to stay within
+    (the object gain renders the surface, the tracked pad is within ``near_m`` over the device's face and
+    moves along it slower than ``rest_m_s``: a finger landing while it moves sideways is followed, the
+    world's run-up with it); then the target's part along the surface moves only as far as it must to stay within
     ``play_m`` of the input (no jump when the play starts, smaller moves absorbed), its part along
     the normal passes. Why: under a resting finger the world's target follows each sample's
     projection of the finger (0.1–0.3 mm of jitter), and with Λ's normal released the lateral servo
     dragged the face sideways through the arm's friction, down and away from under the pad (contact
     made twice)."""
 
-    def __init__(self, play_m: float = 0.0005, near_m: float = 0.002):
-        self.play_m, self.near_m = float(play_m), float(near_m)
+    def __init__(self, play_m: float = 0.0005, near_m: float = 0.002, rest_m_s: float = 0.020):
+        self.play_m, self.near_m, self.rest_m_s = float(play_m), float(near_m), float(rest_m_s)
         self._a = None  # the target last given out while the play acts (None: it does not)
 
     def reset(self) -> None:
         self._a = None
 
-    def apply(self, X, normal, gap_m: float, surface: bool):
+    def apply(self, X, normal, gap_m: float, surface: bool, finger_velocity=(0.0, 0.0, 0.0)):
         """``X`` (3, or None) with the play applied; ``gap_m`` the tracked pad's height over the face
-        (NaN: no finger), ``surface`` whether the object gain renders the surface, ``normal`` its normal."""
+        (NaN: no finger), ``surface`` whether the object gain renders the surface, ``normal`` its normal,
+        ``finger_velocity`` the tracked pad's (m/s)."""
         if X is None or normal is None or not (surface and gap_m < self.near_m):
+            self._a = None
+            return X
+        n, u = normal, finger_velocity
+        un = u[0] * n[0] + u[1] * n[1] + u[2] * n[2]
+        ux, uy, uz = u[0] - un * n[0], u[1] - un * n[1], u[2] - un * n[2]
+        if not ux * ux + uy * uy + uz * uz < self.rest_m_s * self.rest_m_s:  # the finger moves sideways
             self._a = None
             return X
         a = self._a
         if a is None:
             self._a = X
             return X
-        n = normal
         d = (X[0] - a[0], X[1] - a[1], X[2] - a[2])
         dn = d[0] * n[0] + d[1] * n[1] + d[2] * n[2]
         tx, ty, tz = d[0] - dn * n[0], d[1] - dn * n[1], d[2] - dn * n[2]  # the move along the surface
@@ -434,7 +441,7 @@ class ServoStep:
         F_law, L, scale = self.contact.update(t, p_dev, dev.v_robot, rec.subject, rec.imminent, rec.in_contact, action,
                                               touch_in)
         self._rendering = F_law is not None
-        X_ee = self.play.apply(X_ee, normal, gap, self.contact.gain.state != FREE)
+        X_ee = self.play.apply(X_ee, normal, gap, self.contact.gain.state != FREE, rec.finger_velocity)
         ctrl = self.controller
         ctrl.set_lambda_robot(L)
         if self.servo.travel is not None:  # travel resumes from the arm where Λ let go
