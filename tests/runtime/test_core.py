@@ -184,8 +184,10 @@ def test_the_rest_play_holds_the_lateral_target_under_a_resting_finger_and_follo
     assert play.apply(X, n, 0.0, False) is X  # free motion: the target passes
     assert play.apply(X, n, float("nan"), True) is X  # no finger estimate: the target passes
     # a finger landing while it moves sideways (the world's run-up under it): the target passes
-    play.apply(X0, n, 0.0, True)
+    assert play.apply(X0, n, 0.0, True, (0.03, 0.0, -0.01)) is X0
     assert play.apply(X, n, 0.0, True, (0.03, 0.0, -0.01)) is X
+    play.apply(X, n, 0.0, True)  # it comes to rest: the play starts, and lasts while the finger stays near
+    assert np.allclose(play.apply(X + [0.0003, 0.0, 0.0], n, 0.0, True, (0.03, 0.0, 0.0)), X)
 
 
 def test_the_servo_step_takes_up_a_resting_fingers_sideways_jitter_at_the_surface():

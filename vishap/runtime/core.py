@@ -280,8 +280,10 @@ class RestPlay:
 
     :meth:`apply` passes the target through unchanged unless it is told the finger rests on the face
     (the object gain renders the surface, the tracked pad is within ``near_m`` over the device's face and
-    moves along it slower than ``rest_m_s``: a finger landing while it moves sideways is followed, the
-    world's run-up with it); then the target's part along the surface moves only as far as it must to stay within
+    moves along it slower than ``rest_m_s`` — a finger landing while it moves sideways is followed, the
+    world's run-up with it; once started, the play lasts while the surface is rendered and the finger
+    stays near, so that a speed estimate hovering at ``rest_m_s`` does not switch it on and off, each
+    switch-off a jump of the target); then the target's part along the surface moves only as far as it must to stay within
     ``play_m`` of the input (no jump when the play starts, smaller moves absorbed), its part along
     the normal passes. Why: under a resting finger the world's target follows each sample's
     projection of the finger (0.1–0.3 mm of jitter), and with Λ's normal released the lateral servo
@@ -302,15 +304,13 @@ class RestPlay:
         if X is None or normal is None or not (surface and gap_m < self.near_m):
             self._a = None
             return X
-        n, u = normal, finger_velocity
-        un = u[0] * n[0] + u[1] * n[1] + u[2] * n[2]
-        ux, uy, uz = u[0] - un * n[0], u[1] - un * n[1], u[2] - un * n[2]
-        if not ux * ux + uy * uy + uz * uz < self.rest_m_s * self.rest_m_s:  # the finger moves sideways
-            self._a = None
-            return X
-        a = self._a
-        if a is None:
-            self._a = X
+        a, n = self._a, normal
+        if a is None:  # the play starts once the finger rests; it then lasts while the finger stays near
+            u = finger_velocity
+            un = u[0] * n[0] + u[1] * n[1] + u[2] * n[2]
+            ux, uy, uz = u[0] - un * n[0], u[1] - un * n[1], u[2] - un * n[2]
+            if ux * ux + uy * uy + uz * uz < self.rest_m_s * self.rest_m_s:
+                self._a = X
             return X
         d = (X[0] - a[0], X[1] - a[1], X[2] - a[2])
         dn = d[0] * n[0] + d[1] * n[1] + d[2] * n[2]
