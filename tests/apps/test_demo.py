@@ -88,9 +88,13 @@ def test_faults_hold_or_retreat_within_one_cycle_and_are_counted(run):
 
 
 def test_replay_reproduces_vision_world_and_tactile(run, tmp_path):
-    out, _, _, _ = run
+    from vishap.robot.params import DEFAULT
+
+    out, _, meta, _ = run
     rep = replay(out, out=tmp_path)
     assert rep["identical"] and rep["same_code"], rep
+    # the surface hold too, with the device friction the run's hold cancelled
+    assert meta["hold_friction_n"] == DEFAULT.coulomb_friction_n and rep["world"]["F_hold"] == 0.0
     for part in ("vision", "world", "tactile"):
         assert rep[part] and all(v == 0.0 for v in rep[part].values()), part
     assert (tmp_path / "replay.json").is_file()
@@ -100,8 +104,8 @@ def test_replay_reproduces_vision_world_and_tactile(run, tmp_path):
 
 
 def test_replay_detects_a_log_that_differs_from_what_the_core_computes(run, tmp_path):
-    """Replay compares its re-run with the demo's real log: one changed force-law sample, one changed
-    world target or one changed pixel must each make it report a difference."""
+    """Replay compares its re-run with the demo's real log: one changed force-law or surface-hold sample,
+    one changed world target or one changed pixel must each make it report a difference."""
     out, _, _, _ = run
     with np.load(out / "log.npz", allow_pickle=False) as z:
         arrays = {k: z[k].copy() for k in z.files}
@@ -120,12 +124,18 @@ def test_replay_detects_a_log_that_differs_from_what_the_core_computes(run, tmp_
     def law_edit(a):
         a["servo/F_law"][law[len(law) // 2], 2] += 1e-9
 
+    def hold_edit(a):  # a tick where the renderer holds the face (or, where it never did, one that it did not)
+        held = np.flatnonzero(np.any(a["servo/F_hold"] != 0, axis=1))
+        a["servo/F_hold"][held[len(held) // 2] if held.size else 0, 2] -= 1e-9
+
     def world_edit(a):
         i = int(np.flatnonzero(np.all(np.isfinite(a["scene/X_d"]), axis=1))[-1])
         a["scene/X_d"][i, 0] += 1e-9
 
     rep = tampered("law", law_edit)
     assert not rep["identical"] and rep["world"]["F_law"] > 0 and rep["vision"]["p_cam"] == 0.0
+    rep = tampered("hold", hold_edit)
+    assert not rep["identical"] and rep["world"]["F_hold"] > 0 and rep["world"]["F_law"] == 0.0
     rep = tampered("world", world_edit)
     assert not rep["identical"] and rep["world"]["X_d"] > 0
     # a changed frame changes what vision finds

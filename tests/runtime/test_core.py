@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from vishap.runtime.core import ContactRenderer, SceneStep, TargetRecord
+from vishap.runtime.core import HOLD_BAND_M, ContactRenderer, RestPlay, SceneStep, TargetRecord
 from vishap.world.scene import load_scene
 from vishap.world.world import World
 
@@ -127,24 +127,94 @@ def test_servo_step_holds_a_pressed_device_while_vision_has_lost_the_finger_and_
 
 
 def test_the_renderer_holds_a_device_above_the_surface_there_while_it_renders_the_surface():
+    """Over the band the hold pulls with the law's spring on the height beyond it, its damping and the
+    arm's friction (so it brings the face into the band); inside the band only the damping of a face
+    moving away."""
     scene = load_scene("wall")
-    c = ContactRenderer(scene.objects, max_force_n=8.5)
+    fr = 0.04
+    c = ContactRenderer(scene.objects, max_force_n=8.5, hold_friction_n=fr)
     z0 = np.zeros(3)
     top = scene.objects[0].centre[2]
     assert c.update(0.0, np.array([0.2, 0.0, top + 0.0005]), z0, 0, True, False, "track")[0] is None
     assert c.F_hold is None  # free motion: the position servo holds the device, not the renderer
     c.update(0.001, np.array([0.2, 0.0, top - 0.0002]), z0, 0, True, False, "track")  # dipped in: surface
     assert c.state_code == 1
-    F, _, _ = c.update(0.002, np.array([0.2, 0.0, top + 0.0002]), z0, 0, True, False, "track")
-    assert F is None and c.F_hold[2] == pytest.approx(-800.0 * 0.0002)  # pulled back with the wall's own spring
-    _, _, _ = c.update(0.003, np.array([0.2, 0.0, top + 0.0002]), np.array([0.0, 0.0, 0.05]), 0, True, False, "track")
-    assert c.F_hold[2] == pytest.approx(-800.0 * 0.0002 - 2.0 * 0.05)  # and its damping, moving away
-    c.update(0.004, np.array([0.2, 0.0, top + 1e-7]), z0, 0, True, False, "track")
-    assert abs(c.F_hold[2]) < 1e-3  # continuous with the law at the surface
-    c.update(0.005, np.array([0.2, 0.0, top + 0.0009]), z0, 0, True, False, "track")
-    assert -800.0 * 0.0005 < c.F_hold[2] < 0.0  # fading out before the release height: no step there
-    c.update(0.006, np.array([0.2, 0.0, top + 0.0002]), z0, 0, False, False, "track")
+    F, _, _ = c.update(0.002, np.array([0.2, 0.0, top + 0.0003]), z0, 0, True, False, "track")
+    # pulled back with the wall's own spring beyond the band and the friction it must overcome
+    assert F is None and c.F_hold[2] == pytest.approx(-800.0 * (0.0003 - HOLD_BAND_M) - fr)
+    _, _, _ = c.update(0.003, np.array([0.2, 0.0, top + 0.0003]), np.array([0.0, 0.0, 0.05]), 0, True, False, "track")
+    assert c.F_hold[2] == pytest.approx(-800.0 * (0.0003 - HOLD_BAND_M) - fr - 2.0 * 0.05)  # and its damping, moving away
+    c.update(0.004, np.array([0.2, 0.0, top + HOLD_BAND_M + 1e-7]), z0, 0, True, False, "track")
+    assert c.F_hold[2] == pytest.approx(-fr, abs=1e-3)  # just over the band: the friction's worth
+    for h in (HOLD_BAND_M - 1e-7, 0.5 * HOLD_BAND_M, 1e-7):
+        c.update(0.005, np.array([0.2, 0.0, top + h]), z0, 0, True, False, "track")
+        assert c.F_hold is None  # inside the band the arm's friction holds the face: no pull
+        c.update(0.005, np.array([0.2, 0.0, top + h]), np.array([0.0, 0.0, -0.05]), 0, True, False, "track")
+        assert c.F_hold is None  # nor against a face moving towards the surface
+        c.update(0.005, np.array([0.2, 0.0, top + h]), np.array([0.0, 0.0, 0.05]), 0, True, False, "track")
+        assert c.F_hold[2] == pytest.approx(-2.0 * 0.05)  # only the damping of a face moving away
+    c.update(0.006, np.array([0.2, 0.0, top + 0.0009]), z0, 0, True, False, "track")
+    assert -800.0 * 0.0005 - fr < c.F_hold[2] < 0.0  # fading out before the release height: no step there
+    c.update(0.007, np.array([0.2, 0.0, top + 0.0002]), z0, 0, False, False, "track")
     assert c.state_code == 0 and c.F_hold is None  # the interaction is over: free, the servo holds again
+
+
+def test_the_servo_step_hold_cancels_the_device_friction_from_its_parameters():
+    from vishap.runtime.assembly import make_servo_step, open_device
+
+    scene = load_scene("wall")
+    dev = open_device("sim", passive_object=scene.passive_object.for_mujoco())
+    step = make_servo_step(dev, scene)
+    assert step.contact.hold_friction_n == dev.params.coulomb_friction_n > 0.0
+
+
+def test_the_rest_play_holds_the_lateral_target_under_a_resting_finger_and_follows_larger_moves():
+    n = (0.0, 0.0, 1.0)
+    play = RestPlay(play_m=0.0005, near_m=0.002)
+    X0 = np.array([0.1, 0.0, 0.05])
+    assert play.apply(X0, n, 0.0005, True) is X0  # the play starts where the target is: no jump
+    out = play.apply(X0 + [0.0003, -0.0002, 0.0001], n, 0.0005, True)
+    assert np.allclose(out, X0 + [0.0, 0.0, 0.0001])  # sideways jitter absorbed, the normal passes
+    out = play.apply(X0 + [0.0008, 0.0, 0.0], n, 0.0, True)
+    assert np.allclose(out, X0 + [0.0003, 0.0, 0.0])  # a larger move followed, play_m behind
+    out = play.apply(X0 + [0.0006, 0.0, 0.0], n, 0.0, True)
+    assert np.allclose(out, X0 + [0.0003, 0.0, 0.0])  # and back within the play: still
+    X = X0 + [0.0006, 0.0, 0.0]
+    assert play.apply(X, n, 0.003, True) is X  # the finger above near_m: the target passes
+    assert play.apply(X, n, 0.0, False) is X  # free motion: the target passes
+    assert play.apply(X, n, float("nan"), True) is X  # no finger estimate: the target passes
+    # a finger landing while it moves sideways (the world's run-up under it): the target passes
+    assert play.apply(X0, n, 0.0, True, (0.03, 0.0, -0.01)) is X0
+    assert play.apply(X, n, 0.0, True, (0.03, 0.0, -0.01)) is X
+    play.apply(X, n, 0.0, True)  # it comes to rest: the play starts, and lasts while the finger stays near
+    assert np.allclose(play.apply(X + [0.0003, 0.0, 0.0], n, 0.0, True, (0.03, 0.0, 0.0)), X)
+
+
+def test_the_servo_step_takes_up_a_resting_fingers_sideways_jitter_at_the_surface():
+    """A finger resting on the face, its lateral estimate jittering 0.2 mm per record: once the surface is
+    rendered the servo's target stays put (the play); free of the finger, the target follows again."""
+    from vishap.robot import kinematics
+    from vishap.runtime.assembly import make_servo_step, open_device
+
+    scene = load_scene("wall")
+    dev = open_device("sim", passive_object=scene.passive_object.for_mujoco())
+    step = make_servo_step(dev, scene)
+    top = scene.objects[0].centre
+    X0 = np.asarray(top - step.mount)
+    dev.reset(kinematics.ik(X0))
+    xs = []
+    for k in range(600):
+        t = k * 1e-3
+        j = 0.0002 * (-1) ** (k // 33)  # a new lateral estimate every vision frame
+        rec = TargetRecord(k // 33 + 1, tuple(X0 + [j, 0.0, 0.0]), (k // 33) * 0.033, 1.0, True, True, 0, True, True,
+                           tuple(top + [j, 0.0, 0.0]), (0.0, 0.0, 0.0), t)
+        tk = step.tick(t, rec)
+        if tk.lambda_state == 1:
+            xs.append(tk.X_ee[0] - X0[0])
+    assert len(xs) > 300 and np.ptp(xs[-300:]) == 0.0  # at the surface the target stood still
+    rec = TargetRecord(1000, tuple(X0 + [0.0002, 0.0, 0.0]), 0.7, 1.0, True, True, 0, True, True,
+                       tuple(top + [0.0002, 0.0, 0.01]), (0.0, 0.0, 0.0), 0.7)
+    assert step.tick(0.7, rec).X_ee[0] - X0[0] == pytest.approx(0.0002)  # the finger 10 mm up: no play
 
 
 class _LandingFinger:

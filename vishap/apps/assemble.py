@@ -186,8 +186,11 @@ def _overlay(st, pair, row, dev, target, t, extra=()):
 
 
 def meta(cfg: DemoConfig, *, rig, T_true, T_est, calib_report, scene, force_limit_n: float, continuous_force_n: float,
-         mode: str = "batch", source: str | None = None, device: str = "sim") -> dict:
-    """The log's metadata: one schema for batch and live runs (``mode``)."""
+         hold_friction_n: float = float("nan"), mode: str = "batch", source: str | None = None,
+         device: str = "sim") -> dict:
+    """The log's metadata: one schema for batch and live runs (``mode``). ``hold_friction_n``: the
+    device friction the servo's surface hold cancels (:class:`~vishap.runtime.core.ContactRenderer`;
+    replay renders the hold with it)."""
     import vishap
 
     from vishap.apps.log import code_version
@@ -208,6 +211,7 @@ def meta(cfg: DemoConfig, *, rig, T_true, T_est, calib_report, scene, force_limi
         "tip_radius_m": TIP_RADIUS_M,
         "force_limit_n": force_limit_n,
         "continuous_force_n": continuous_force_n,
+        "hold_friction_n": hold_friction_n,
         "object": {"name": obj.name, "normal": np.asarray(obj.normal, float), "centre": np.asarray(obj.centre, float),
                    "target": getattr(obj.mode, "target", "projection")},
         "python": sys.version.split()[0],

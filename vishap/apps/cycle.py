@@ -101,6 +101,11 @@ def pad_force(obj, half_size_m: float):
     return lambda p_f, v_f, p_dev, v_dev: pad.force_on_device(p_f, v_f, p_dev, v_dev, n, half_size_m)
 
 
+def _or_zero(F) -> np.ndarray:
+    """A force that may be absent (None) as the logged vector (zero when absent)."""
+    return np.zeros(3) if F is None else np.asarray(F, float)
+
+
 def tactile_row(out) -> dict[str, np.ndarray]:
     """Flatten the tactile renderer's per-tick output (a dataclass) into named numeric arrays."""
     row = {}
@@ -188,7 +193,8 @@ class ServoCycle:
             t=t, q=dev.q, p_ee=dev.p_robot, device_point=p_dev, v_device=dev.v_robot,
             X_d=np.full(3, np.nan) if tk.X_ee is None else tk.X_ee + step.mount, guard=GUARD_CODES[tk.action],
             record_seq=rec.seq, F_cmd=F_cmd, F_pd=np.array(ctrl.F_pd, float),
-            F_law=np.zeros(3) if tk.F_law is None else np.asarray(tk.F_law, float), law_active=tk.F_law is not None,
+            F_law=_or_zero(tk.F_law), law_active=tk.F_law is not None,
+            F_hold=_or_zero(step.contact.F_hold),
             lambda_state=tk.lambda_state, force_scale=tk.force_scale, finger_m=tk.finger_m, pressed=tk.pressed,
             F_contact=F_on_finger, in_contact=bool(np.any(F_on_dev)), saturated=bool(ctrl.saturated),
             heat_n2=float(ctrl.heat), finger_point=pad, finger_velocity=v_pad,

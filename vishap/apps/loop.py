@@ -51,7 +51,8 @@ class Demo:
         self.st = st = assemble.build(cfg, self.out, self.log)
         self.log.meta.update(assemble.meta(
             cfg, rig=st.rig, T_true=st.T_true, T_est=st.T_est, calib_report=st.calib_report, scene=st.scene,
-            force_limit_n=st.force_limit_n, continuous_force_n=float(st.plant.limits.continuous_force_n)),
+            force_limit_n=st.force_limit_n, continuous_force_n=float(st.plant.limits.continuous_force_n),
+            hold_friction_n=st.cycle.step.contact.hold_friction_n),
             sleeve_finger_dir=st.cycle.finger.finger_dir)
         self.script = st.script
         self.n = np.asarray(st.scene_object.normal, float)

@@ -9,7 +9,7 @@ order and compares their outputs with the logged ones:
 - scene step (:class:`vishap.runtime.core.SceneStep`, the same code the run used): every scene
   update (the newest vision estimate, mapped by the logged calibration, with the device position of
   that update) → ``X_d``, ``depth``, ``subject``, ``imminent``, ``in_contact``; and at every servo tick
-  the servo step's force law and object-gain state (:class:`~vishap.runtime.core.ContactRenderer`)
+  the servo step's force law, surface hold and object-gain state (:class:`~vishap.runtime.core.ContactRenderer`)
   on the record that tick used, the device state and the guard's action;
 - tactile: every tick's contact sample (:func:`vishap.apps.cycle.contact_sample`) → the renderer's
   drive signals and contact state.
@@ -134,11 +134,13 @@ def replay(log_path, *, out=None, atol: float = 0.0, progress: bool = False) -> 
 
     scene = load_scene(cfg.scene)
     scene_step = make_scene_step(make_world(cfg, scene, rig, T_est), T_est)
-    contact = ContactRenderer(scene.objects, max_force_n=float(meta["force_limit_n"]), dt=1.0 / cfg.servo_hz)
+    contact = ContactRenderer(scene.objects, max_force_n=float(meta["force_limit_n"]), dt=1.0 / cfg.servo_hz,
+                              hold_friction_n=float(meta.get("hold_friction_n", 0.0)))
     action_of = {code: name for name, code in GUARD_CODES.items()}
     s, sv = ch.get("scene", {}), ch["servo"]
     records = {0: TargetRecord()}  # by sequence number; 0: the servo had no record yet
     F_law_new = np.zeros_like(sv["F_law"])
+    F_hold_new = np.zeros_like(sv["F_law"])
     lam_new = np.zeros(len(sv["t"]))
     events = sorted([(float(t), 0, i) for i, t in enumerate(s.get("t", []))] +
                     [(float(t), 1, i) for i, t in enumerate(sv["t"])])
@@ -158,11 +160,15 @@ def replay(log_path, *, out=None, atol: float = 0.0, progress: bool = False) -> 
                                      action_of[int(sv["guard"][i])], touch_in)
             if F is not None:
                 F_law_new[i] = F
+            if contact.F_hold is not None:
+                F_hold_new[i] = contact.F_hold
             lam_new[i] = contact.state_code
     if len(s.get("t", [])):
         ns = new.channel("scene").arrays()
         report["world"] = compare(s, ns, ["finger_robot", "X_d", "depth", "imminent", "in_contact", "subject"], atol)
     report["world"] = {**report.get("world", {}), "F_law": compare({"F": sv["F_law"]}, {"F": F_law_new}, ["F"], atol)["F"]}
+    if "F_hold" in sv:  # the surface hold, from the same renderer
+        report["world"]["F_hold"] = compare(sv, {"F_hold": F_hold_new}, ["F_hold"], atol)["F_hold"]
     if "lambda_state" in sv:  # the object gain's state, from the same scheduler on the logged inputs
         report["world"]["lambda_state"] = compare(sv, {"lambda_state": lam_new}, ["lambda_state"], atol)["lambda_state"]
 

@@ -36,8 +36,8 @@ from vishap.robot.object_gain import ENGAGED, FREE, SURFACE
 from vishap.runtime.safety import TargetGuard, record_values_valid
 from vishap.world.predictor import near_predictor
 
-__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "ServoStep", "ServoTick", "GUARD_CODES",
-           "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
+__all__ = ["TargetRecord", "SceneStep", "ContactRenderer", "HOLD_BAND_M", "RestPlay", "ServoStep",
+           "ServoTick", "GUARD_CODES", "LAMBDA_CODES", "RECORD_SIZE", "finger_approach"]
 
 #: the guard's action as logged (``idle``: no finger seen yet, the servo holds the arm where it is)
 GUARD_CODES = {"track": 0, "hold": 1, "retreat": 2, "idle": 3}
@@ -46,6 +46,8 @@ LAMBDA_CODES = {FREE: 0, SURFACE: 1, ENGAGED: 2}
 _NAN3 = (math.nan, math.nan, math.nan)
 #: depth at which a law's stiffness at its surface is read (m): inside every law's first spring
 _HOLD_PROBE_M = 1e-5
+#: the band over the surface in which the renderer's hold leaves the face to the arm's own friction (m)
+HOLD_BAND_M = 5e-5
 
 
 @dataclass
@@ -188,12 +190,21 @@ class ContactRenderer:
     along the normal, and the light arm floats off (the law's own push launched it 1–6 mm above
     the surface in the demos, flipping Λ back to free and back, and a landing finger met a loose
     device that bounced off its pad). The renderer then holds the device at the surface from above
-    with the law's own stiffness and damping at the surface (:attr:`F_hold`, pulling only, fading
-    out over the last half of ``release_m``), so the face waits exactly at the virtual surface,
-    the force is continuous across it and a finger lands on a device that is held.
+    (:attr:`F_hold`, pulling only, fading out over the last half of ``release_m``) with the law's own
+    stiffness and damping at the surface, on the height beyond a band of :data:`HOLD_BAND_M`, plus
+    the arm's Coulomb friction at the tip (``hold_friction_n``, from the device's parameters): above
+    the band the pull overcomes the friction and brings the face into the band; inside it the hold
+    gives only the damping of a face moving away (continuous with the law's at the surface and over
+    the band's edge), and the arm's friction keeps the face where it is. A spring alone could bring
+    the face only within ``hold_friction_n / k`` of the surface (50–114 µm on the demos' laws) and
+    kept pulling there, so a landing finger's light push (0.03 N) unstuck the arm and the face fell
+    away under the pad (contact made twice). The band is narrow because the demos' fingers come to
+    rest at the surface: a face waiting higher is pushed down that far by the landing pad and, light,
+    ran ahead of it (contact made twice on faces waiting 0.1 mm up).
     """
 
-    def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003, dt: float = 0.001):
+    def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003, dt: float = 0.001,
+                 hold_friction_n: float = 0.0):
         from vishap.robot.object_gain import ObjectGainScheduler
         from vishap.world.force_laws import make_law
 
@@ -205,6 +216,7 @@ class ContactRenderer:
         #: each law's stiffness and damping at its surface: the hold above it
         self._hold = [(law.normal_force(_HOLD_PROBE_M) / _HOLD_PROBE_M, float(getattr(law, "c", 0.0)))
                       for law in self.laws]
+        self.hold_friction_n = float(hold_friction_n)
         self.F_hold = None  # the hold's force (robot frame, N) at the last update, or None
 
     def reset(self) -> None:
@@ -253,10 +265,61 @@ class ContactRenderer:
             n = law.normal
             vn = float(n[0] * v_device[0] + n[1] * v_device[1] + n[2] * v_device[2])
             w = min(1.0, 2.0 * (rel + depth) / rel)  # 1 down to −release_m/2, then fading to 0 at −release_m
-            f = min(0.0, (k * depth - c * vn) * w)  # pulls toward the surface only
+            excess = -depth - HOLD_BAND_M  # the height beyond the band
+            if excess > 0.0:
+                f = min(0.0, -(k * excess + self.hold_friction_n + c * vn) * w)  # pulls toward the surface only
+            else:  # in the band: only the damping of a face moving away, continuous with the law's at the surface
+                f = min(0.0, -c * vn * w)
             if f < 0.0:
                 self.F_hold = (float(n[0]) * f, float(n[1]) * f, float(n[2]) * f)
         return F, L, scale
+
+
+class RestPlay:
+    """A sideways play (backlash) on the servo's target while a finger rests on the face.
+
+    :meth:`apply` passes the target through unchanged unless it is told the finger rests on the face
+    (the object gain renders the surface, the tracked pad is within ``near_m`` over the device's face and
+    moves along it slower than ``rest_m_s`` — a finger landing while it moves sideways is followed, the
+    world's run-up with it; once started, the play lasts while the surface is rendered and the finger
+    stays near, so that a speed estimate hovering at ``rest_m_s`` does not switch it on and off, each
+    switch-off a jump of the target); then the target's part along the surface moves only as far as it must to stay within
+    ``play_m`` of the input (no jump when the play starts, smaller moves absorbed), its part along
+    the normal passes. Why: under a resting finger the world's target follows each sample's
+    projection of the finger (0.1–0.3 mm of jitter), and with Λ's normal released the lateral servo
+    dragged the face sideways through the arm's friction, down and away from under the pad (contact
+    made twice)."""
+
+    def __init__(self, play_m: float = 0.0005, near_m: float = 0.002, rest_m_s: float = 0.020):
+        self.play_m, self.near_m, self.rest_m_s = float(play_m), float(near_m), float(rest_m_s)
+        self._a = None  # the target last given out while the play acts (None: it does not)
+
+    def reset(self) -> None:
+        self._a = None
+
+    def apply(self, X, normal, gap_m: float, surface: bool, finger_velocity=(0.0, 0.0, 0.0)):
+        """``X`` (3, or None) with the play applied; ``gap_m`` the tracked pad's height over the face
+        (NaN: no finger), ``surface`` whether the object gain renders the surface, ``normal`` its normal,
+        ``finger_velocity`` the tracked pad's (m/s)."""
+        if X is None or normal is None or not (surface and gap_m < self.near_m):
+            self._a = None
+            return X
+        a, n = self._a, normal
+        if a is None:  # the play starts once the finger rests; it then lasts while the finger stays near
+            u = finger_velocity
+            un = u[0] * n[0] + u[1] * n[1] + u[2] * n[2]
+            ux, uy, uz = u[0] - un * n[0], u[1] - un * n[1], u[2] - un * n[2]
+            if ux * ux + uy * uy + uz * uz < self.rest_m_s * self.rest_m_s:
+                self._a = X
+            return X
+        d = (X[0] - a[0], X[1] - a[1], X[2] - a[2])
+        dn = d[0] * n[0] + d[1] * n[1] + d[2] * n[2]
+        tx, ty, tz = d[0] - dn * n[0], d[1] - dn * n[1], d[2] - dn * n[2]  # the move along the surface
+        m = math.sqrt(tx * tx + ty * ty + tz * tz)
+        s = 1.0 - self.play_m / m if m > self.play_m else 0.0
+        out = np.array((a[0] + s * tx + dn * n[0], a[1] + s * ty + dn * n[1], a[2] + s * tz + dn * n[2]))
+        self._a = out
+        return out
 
 
 def finger_approach(rec: TargetRecord, t: float, p_device, normal):
@@ -306,19 +369,22 @@ class ServoStep:
     rendering on the previous tick and the device is pushed in deeper than ``press_m`` under the
     subject's surface (a real device knows this from its own encoders; no camera is involved).
     The travel limiter is given the device's distance to the tracked finger (the record's pad point
-    extrapolated to now), so the device slows down near the finger.
+    extrapolated to now), so the device slows down near the finger. Under a finger resting on the face
+    the target's sideways jitter is taken up by a play (:class:`RestPlay`).
     """
 
     def __init__(self, servo, guard: TargetGuard, objects, *, mount_offset, engage_m: float = 0.0003,
-                 press_m: float = 0.0005):
+                 press_m: float = 0.0005, play: RestPlay | None = None):
         self.servo = servo
         self.device = servo.device
         self.controller = servo.controller
         self.guard = guard
         self.mount = np.asarray(mount_offset, float).reshape(3)
         self.press_m = float(press_m)
+        params = self.device.params
         self.contact = ContactRenderer(objects, max_force_n=float(self.device.limits.peak_force_n), engage_m=engage_m,
-                                       dt=float(self.device.params.dt))
+                                       dt=float(params.dt), hold_friction_n=float(params.coulomb_friction_n))
+        self.play = RestPlay() if play is None else play
         self.last_action = "idle"
         self._key = None
         self._retreat_key = None
@@ -334,6 +400,7 @@ class ServoStep:
         """Start a new run on the same device: guard, laws, object gain and target keys forgotten."""
         self.guard.reset()
         self.contact.reset()
+        self.play.reset()
         self.last_action = "idle"
         self._key = self._retreat_key = None
         self._rendering = False
@@ -374,6 +441,7 @@ class ServoStep:
         F_law, L, scale = self.contact.update(t, p_dev, dev.v_robot, rec.subject, rec.imminent, rec.in_contact, action,
                                               touch_in)
         self._rendering = F_law is not None
+        X_ee = self.play.apply(X_ee, normal, gap, self.contact.gain.state != FREE, rec.finger_velocity)
         ctrl = self.controller
         ctrl.set_lambda_robot(L)
         if self.servo.travel is not None:  # travel resumes from the arm where Λ let go
