@@ -75,6 +75,7 @@ class KalmanCV:
                 Q[i, i] = q3
                 Q[i, i + d] = Q[i + d, i] = q2
                 Q[i + d, i + d] = q1
+            F.flags.writeable = Q.flags.writeable = False  # kept and shared by later steps: never written into
             FQ = self._FQ[key] = F, Q
         return FQ
 
