@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from vishap._core.errors import ShapeError, VisionError
+from vishap.vision.axis_disparity import AxisLevel
 from vishap.vision.fingertip import FingertipConfig, detect_fingertips
 from vishap.vision.rig import StereoRig
 from vishap.vision.segment import SegmentConfig, Segmenter, snap_roi
@@ -119,6 +120,11 @@ class VisionPipeline:
         self.background_warning = ""        # set when the learned background holds a hand (_hand_in_background)
         self._disp_kf: KalmanCV | None = None  # the 3-D fix's disparity filter (_filter_disparity)
         self._disp_t: float | None = None
+        rc = self.config.refine
+        # the side-edge axis's offset from the cap fits (_refine_pair; None: the fixed axis_weight mean)
+        self.axis_level = (AxisLevel(rc.axis_level_s, rc.axis_sigma_px, rc.cap_sigma_px)
+                           if rc.method == "axis" and rc.axis_level_s > 0 else None)
+        self._t_frame = 0.0                 # the frame being processed (the level's clock)
         self._refine_ms = 0.0
         self.refine_stats = [0, 0]          # chosen pairs whose refinement failed / succeeded
 
@@ -169,6 +175,8 @@ class VisionPipeline:
         self._z = None
         self._p3 = self._pending = None
         self._disp_kf = None
+        if self.axis_level is not None:
+            self.axis_level.reset()
 
     def _check(self, left, right) -> None:
         for name, img in (("left", left), ("right", right)):
@@ -184,6 +192,7 @@ class VisionPipeline:
         """One StereoFrame (``t``, ``left``, ``right``) to a :class:`TipEstimate`."""
         t0 = time.perf_counter()
         t = float(frame.t)
+        self._t_frame = t
         self._check(frame.left, frame.right)
         if not self.learned:
             self._learn_buf.append((frame.left, frame.right))
@@ -286,7 +295,10 @@ class VisionPipeline:
         """The chosen pair's cap centres refined (stereo.refine_tip_pair, on the images or the views'
         skin masks); the masks' centres are kept when the refinement fails or its pair fails the stereo checks."""
         ts = time.perf_counter()
-        ref = refine_tip_pair(self.rig, images[0], images[1], tl, tr, self.config.refine, masks=self._masks)
+        ref = refine_tip_pair(self.rig, images[0], images[1], tl, tr, self.config.refine, masks=self._masks,
+                              level=self.axis_level)
+        if ref.ok and self.axis_level is not None and ref.axis_offset_px is not None:
+            self.axis_level.add(self._t_frame, ref.axis_offset_px)
         out = {"left": tl.uv, "right": tr.uv}, sp
         if ref.ok:
             spr = (triangulate_tip(self.rig, ref.uv_left, ref.uv_right, self.config.stereo) if ref.rect_left is None

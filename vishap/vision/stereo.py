@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from vishap._core.errors import VisionError
-from vishap.vision.axis_disparity import axis_disparity, axis_lines
+from vishap.vision.axis_disparity import AxisLevel, axis_disparity, axis_lines
 from vishap.vision.rig import StereoRig
 
 __all__ = ["StereoPoint", "StereoConfig", "triangulate_tip", "with_covariance", "dense_tip", "DenseMatcher", "RefineConfig",
@@ -202,7 +202,12 @@ class RefineConfig:
     axis_width_tol: float = 0.3     # an edge point must lie a cap radius from the axis within this fraction
     axis_min_points: int = 4        # edge points needed on each side of the finger, per view
     axis_max_residual_px: float = 0.75  # an edge point this far from its fitted line is dropped
-    axis_weight: float = 0.5        # the pair's disparity: this share from the axis, the rest from the cap fits
+    axis_weight: float = 0.5        # without a level (axis_level_s 0): the axis's share of the pair's disparity,
+    #   the rest from the cap fits
+    axis_level_s: float = 3.0       # the axis's offset from the cap fits followed over this time constant and taken
+    #   off (axis_disparity.AxisLevel; 0: off, the fixed axis_weight mean); the shares then come from …
+    axis_sigma_px: float = 0.16     # … the noise of the axis's disparity and …
+    cap_sigma_px: float = 0.25      # … the cap fits' (their spread about their means on wall 1 and button 2)
     axis_at_cap: bool = False       # the axis's disparity at the cap centre's row (extrapolated) instead of at
     #   the mean row of its edge points, where the line is best known (a point 0.6–0.9 radii behind the cap)
 
@@ -221,6 +226,7 @@ class RefinedPair:
     reason: str = ""
     rect_left: tuple[float, float] | None = None  # the same pixels in the rectified images, where the method has them
     rect_right: tuple[float, float] | None = None
+    axis_offset_px: float | None = None    # "axis": the axis's disparity less the cap fits' (what AxisLevel follows)
 
 
 def _unrectify_points(rig: StereoRig, pts: np.ndarray, side: str) -> np.ndarray:
@@ -334,16 +340,19 @@ def fit_circles_shared_row(pts_left: np.ndarray, pts_right: np.ndarray, *, itera
 
 
 def refine_tip_pair(rig: StereoRig, left: np.ndarray, right: np.ndarray, tip_left, tip_right,
-                    config: RefineConfig = RefineConfig(), *, masks: dict | None = None) -> RefinedPair:
+                    config: RefineConfig = RefineConfig(), *, masks: dict | None = None,
+                    level: AxisLevel | None = None) -> RefinedPair:
     """Refine a matched pair of cap centres (``Fingertip`` results in raw pixels: ``uv``,
     ``cap_radius_px``, ``direction``) on the images; see :class:`RefineConfig`. ``masks``
-    (method ``"axis"``): per view ``(skin mask, raw pixel of its (0, 0))``."""
+    (method ``"axis"``): per view ``(skin mask, raw pixel of its (0, 0))``; ``level``: the axis's
+    offset from the cap fits so far (:class:`~vishap.vision.axis_disparity.AxisLevel`; None: the
+    fixed ``axis_weight`` mean). The level is read, not updated: the caller adds the pair it keeps."""
     if config.method == "none":
         return RefinedPair(False, reason="no refinement")
     if config.method == "match":
         return _refine_by_match(rig, left, right, tip_left, tip_right, config)
     if config.method == "axis":
-        return _refine_by_axis(rig, masks, tip_left, tip_right, config)
+        return _refine_by_axis(rig, masks, tip_left, tip_right, config, level)
     from vishap.vision.fingertip import fit_circle
 
     pts = {}
@@ -372,9 +381,11 @@ def refine_tip_pair(rig: StereoRig, left: np.ndarray, right: np.ndarray, tip_lef
                        float(r), (len(pts["left"]), len(pts["right"])))
 
 
-def _refine_by_axis(rig: StereoRig, masks: dict | None, tip_left, tip_right, config: RefineConfig) -> RefinedPair:
+def _refine_by_axis(rig: StereoRig, masks: dict | None, tip_left, tip_right, config: RefineConfig,
+                    level: AxisLevel | None = None) -> RefinedPair:
     """The pair's disparity from the finger's side edges (:mod:`vishap.vision.axis_disparity`): each
-    view's axis line at the cap centres' mean rectified row; the left point is the axis there."""
+    view's axis line at the cap centres' mean rectified row, blended with the cap fits' disparity
+    (by ``level`` when given, else the fixed ``axis_weight``); the left point is the cap centre's."""
     if masks is None:
         raise VisionError("refine method 'axis' needs the skin masks of both views")
     lines = axis_lines(rig, [("left", *masks["left"], tip_left), ("right", *masks["right"], tip_right)],
@@ -390,10 +401,11 @@ def _refine_by_axis(rig: StereoRig, masks: dict | None, tip_left, tip_right, con
     axis = axis_disparity(ll, lr, v if config.axis_at_cap else 0.5 * (ll.v_mean + lr.v_mean))
     if not abs(axis - cap) <= config.max_shift_px:
         return RefinedPair(False, reason=f"axis disparity {axis - cap:+.2f} px from the cap fits'")
-    disp = config.axis_weight * axis + (1.0 - config.axis_weight) * cap
+    disp = level.blend(axis, cap) if level is not None else config.axis_weight * axis + (1.0 - config.axis_weight) * cap
     ul, ur = float(cl[0]), float(cl[0]) - disp
     return RefinedPair(True, _unrectify_point(rig, ul, v, "left"), _unrectify_point(rig, ur, v, "right"), 0.0,
-                       (sum(ll.points), sum(lr.points)), rect_left=(ul, v), rect_right=(ur, v))
+                       (sum(ll.points), sum(lr.points)), rect_left=(ul, v), rect_right=(ur, v),
+                       axis_offset_px=axis - cap)
 
 
 def _unrectify_point(rig: StereoRig, u: float, v: float, side: str) -> np.ndarray:
