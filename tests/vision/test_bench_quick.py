@@ -44,14 +44,14 @@ def test_bench_vision_runs_the_chosen_stages_and_variants_with_the_working_range
     rec = json.loads((out / "vision.json").read_text())
     seq = rec["sequences"]["toy"]
     assert set(seq) == {"frames", "skin_model", "refinement", "speed"}
-    assert set(seq["refinement"]) == {"cap fits + side-edge axis + disparity filter (shipped)",
-                                      "mask cap fits + disparity filter (before)"}
+    assert set(seq["refinement"]) == {"cap fits + side-edge axis levelled on them + disparity filter (shipped)",
+                                      "cap fits + side-edge axis, fixed mean + disparity filter (before)"}
     for r in seq["refinement"].values():
         assert r["working_range_frames"] > 0 and r["tip3d_rms_mm_working_range"] > 0
-    summary = rec["refinement_summary"]["cap fits + side-edge axis + disparity filter (shipped)"]
+    summary = rec["refinement_summary"]["cap fits + side-edge axis levelled on them + disparity filter (shipped)"]
     assert summary["sequences"] == 1 and summary["goal_mm"] == 1.5
     assert summary["working_range_pooled_mm"] == pytest.approx(
-        seq["refinement"]["cap fits + side-edge axis + disparity filter (shipped)"]["tip3d_rms_mm_working_range"])
+        seq["refinement"]["cap fits + side-edge axis levelled on them + disparity filter (shipped)"]["tip3d_rms_mm_working_range"])
     assert any(k.startswith("cap fits only (no side-edge axis): ") for k in seq["speed"]["cpu_ms_per_pair"])
     assert not (out / "vision_speed_accuracy.png").exists() and (out / "vision_stereo_refinement.png").is_file()
     capsys.readouterr()

@@ -203,7 +203,8 @@ def _bench_speed(seq, frames, skin, learn: int, rounds: int) -> dict:
 def refinement_variants() -> dict:
     """The 3-D tip's variants charted against each other (speed against 3-D RMS): the masks' cap
     centres alone, with the disparity filter, with a median of 3 (paper: 5), the side-edge axis
-    (shipped), and the stereo refinements on the images (stereo.RefineConfig) a user would pick instead."""
+    levelled on the cap fits (shipped; axis_disparity.AxisLevel) and as their fixed mean (before), the
+    axis alone, and the stereo refinements on the images (stereo.RefineConfig) a user would pick instead."""
     from vishap.vision.pipeline import PipelineConfig
     from vishap.vision.segment import SegmentConfig
     from vishap.vision.stereo import RefineConfig
@@ -211,10 +212,13 @@ def refinement_variants() -> dict:
     caps = RefineConfig(method="none")
     return {
         "mask cap fits (no disparity filter)": PipelineConfig(refine=caps, disparity_q=0),
-        "mask cap fits + disparity filter (before)": PipelineConfig(refine=caps),
-        "cap fits + side-edge axis + disparity filter (shipped)": PipelineConfig(),
-        "cap fits + side-edge axis, no disparity filter": PipelineConfig(disparity_q=0),
-        "side-edge axis alone + disparity filter": PipelineConfig(refine=RefineConfig(method="axis", axis_weight=1.0)),
+        "mask cap fits + disparity filter": PipelineConfig(refine=caps),
+        "cap fits + side-edge axis levelled on them + disparity filter (shipped)": PipelineConfig(),
+        "cap fits + side-edge axis, fixed mean + disparity filter (before)":
+            PipelineConfig(refine=RefineConfig(method="axis", axis_level_s=0.0)),
+        "cap fits + side-edge axis levelled, no disparity filter": PipelineConfig(disparity_q=0),
+        "side-edge axis alone + disparity filter": PipelineConfig(refine=RefineConfig(method="axis", axis_weight=1.0,
+                                                                                      axis_level_s=0.0)),
         "mask cap fits, median 3 + disparity filter": PipelineConfig(refine=caps,
                                                                      segment=SegmentConfig(coarse=4, median=3)),
         "sub-pixel image edges, a circle per view": PipelineConfig(refine=RefineConfig(method="edges_separate")),
