@@ -275,14 +275,17 @@ def test_one_unrectified_point_in_plain_floats_is_the_array_form(ideal_rig, dist
                                            _unrectify_points(rig, (u, v), side)[0], rtol=0, atol=1e-9)
 
 
-def test_the_axis_level_starts_on_the_cap_fits_and_weighs_the_two_by_their_noise_once_known(rng):
-    """Before any pair the blend is the cap fits' disparity alone (the level unknown); fed offsets
-    ``axis − cap`` of a steady bias, the level converges on it and the axis's share on the
-    inverse-variance weight σc² / (σc² + σa²); the blend then takes the bias off the axis."""
+def test_the_axis_level_starts_from_its_prior_and_weighs_the_two_by_their_noise_once_known(rng):
+    """Before any pair the level is the prior's (no offset, σ 0.15 px) and the blend about the plain
+    mean of the axis and the cap fits; fed offsets ``axis − cap`` of a steady bias, the level
+    converges on it and the axis's share on the inverse-variance weight σc² / (σc² + σa²); the blend
+    then takes the bias off the axis."""
     from vishap.vision.axis_disparity import AxisLevel
 
-    lv = AxisLevel(3.0, 0.16, 0.25)
-    assert lv.axis_weight() == 0.0 and lv.blend(10.4, 10.0) == 10.0
+    lv = AxisLevel(3.0, 0.16, 0.25, 0.15)
+    w0 = 0.25 ** 2 / (0.25 ** 2 + 0.16 ** 2 + 0.15 ** 2)
+    assert lv.level_px == 0.0 and lv.axis_weight() == pytest.approx(w0)
+    assert lv.blend(10.4, 10.0) == pytest.approx(10.0 + 0.4 * w0)
     for k in range(600):  # 20 s at 30 Hz, the axis 0.12 px over the cap fits plus both fits' noise
         lv.add(k / 30, 0.12 + rng.normal(0.0, np.hypot(0.16, 0.25)))
     assert lv.level_px == pytest.approx(0.12, abs=0.05)
@@ -290,7 +293,7 @@ def test_the_axis_level_starts_on_the_cap_fits_and_weighs_the_two_by_their_noise
     assert lv.axis_weight() == pytest.approx(w, abs=0.01) and lv.axis_weight() < w
     assert lv.blend(10.12, 10.0) == pytest.approx(10.0 + lv.axis_weight() * (0.12 - lv.level_px), abs=1e-12)
     with pytest.raises(ValueError, match="tau_s"):
-        AxisLevel(0.0, 0.16, 0.25)
+        AxisLevel(0.0, 0.16, 0.25, 0.15)
 
 
 def test_the_axis_level_follows_a_change_over_its_time_constant():
@@ -298,7 +301,7 @@ def test_the_axis_level_follows_a_change_over_its_time_constant():
     0.3 px is 63 % taken after one time constant, and all of it after many."""
     from vishap.vision.axis_disparity import AxisLevel
 
-    lv = AxisLevel(2.0, 0.16, 0.25)
+    lv = AxisLevel(2.0, 0.16, 0.25, 0.15)
     t = 0.0
     while t < 20.0:
         lv.add(t, 0.1)
@@ -311,7 +314,8 @@ def test_the_axis_level_follows_a_change_over_its_time_constant():
     while t < t0 + 30.0:
         lv.add(t, 0.3)
         t += 0.01
-    assert lv.level_px == pytest.approx(0.3, abs=1e-3)
+    # 400 effective pairs against the prior: shrunk by 1 %
+    assert lv.level_px == pytest.approx(0.3, abs=5e-3) and lv.level_px < 0.3
 
 
 def test_the_refinement_takes_the_level_off_the_axis(ideal_rig, rng):
@@ -330,18 +334,20 @@ def test_the_refinement_takes_the_level_off_the_axis(ideal_rig, rng):
     cap = tl.uv[0] - tr.uv[0]
     axis = 2.0 * (plain.uv_left[0] - plain.uv_right[0]) - cap  # the fixed mean's axis share is 0.5
     assert plain.axis_offset_px == pytest.approx(axis - cap, abs=1e-9)
-    lv = AxisLevel(3.0, 0.16, 0.25)
+    lv = AxisLevel(3.0, 0.16, 0.25, 0.15)
     for k in range(90):
         lv.add(k / 30, 0.4)
     ref = refine_tip_pair(ideal_rig, None, None, tl, tr, RefineConfig(method="axis"), masks=masks, level=lv)
     w = lv.axis_weight()
-    assert ref.ok and ref.uv_left[0] - ref.uv_right[0] == pytest.approx(w * (axis - 0.4) + (1 - w) * cap, abs=1e-6)
+    assert 0.35 < lv.level_px < 0.4
+    assert ref.ok and ref.uv_left[0] - ref.uv_right[0] == pytest.approx(w * (axis - lv.level_px) + (1 - w) * cap, abs=1e-6)
     assert ref.axis_offset_px == pytest.approx(axis - cap, abs=1e-9)
 
 
 def test_the_pipeline_follows_the_axis_level_by_default_and_not_without_it(ideal_rig):
-    """The default pipeline keeps one level and feeds it every refined pair; ``axis_level_s=0`` keeps
-    the fixed mean (no level), and a reset of the tracking forgets the level."""
+    """The default pipeline keeps one level and feeds it every refined pair (the level moves off the
+    prior and its weight grows); ``axis_level_s=0`` keeps the fixed mean (no level), and a reset of
+    the tracking forgets the level."""
     import dataclasses
 
     from vishap.vision.capture import StereoFrame
@@ -360,6 +366,7 @@ def test_the_pipeline_follows_the_axis_level_by_default_and_not_without_it(ideal
     for i in range(20):
         f = scene.frame(i / 30, np.array([-0.03 + 0.002 * i, 0.005, 0.5]), hand=i >= 3)
         pipe.process(StereoFrame(i, i / 30, f.left, f.right))
-    assert pipe.refine_stats[1] >= 10 and pipe.axis_level.axis_weight() > 0.5
+    w0 = pipe.axis_level.axis_weight()
+    assert pipe.refine_stats[1] >= 10 and pipe.axis_level.level_px != 0.0
     pipe.reset_tracking()
-    assert pipe.axis_level.axis_weight() == 0.0
+    assert pipe.axis_level.level_px == 0.0 and pipe.axis_level.axis_weight() < w0

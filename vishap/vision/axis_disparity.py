@@ -22,7 +22,7 @@ the standard renders it reads 0.07–0.17 px more than the truth, 0.6–1.5 mm o
 camera, while the cap fits' disparity is unbiased but noisier. :class:`AxisLevel` is the
 complementary filter of the two: the cap fits give the level (the axis's offset from them, averaged
 over seconds, follows the finger's shape and slant), the axis gives the frame-to-frame detail, and
-the two are weighed by their noise once the level is known.
+the two are weighed by their noise and the level's own uncertainty.
 
 Limits: the finger must not lie along the rows (``max_tilt_deg``: the disparity of a line along the
 rows is undefined), both sides must be free of other skin (a side touching the palm or another
@@ -246,33 +246,42 @@ class AxisLevel:
 
     Each refined pair adds its offset ``axis − cap`` (px); the level is their exponentially weighted
     mean over ``tau_s`` (a finger's shape and slant change over seconds, the fits' noise from frame to
-    frame). :meth:`blend` gives the pair's disparity from the axis less the level and the cap fits,
-    weighed by their variances — the axis's (``axis_sigma_px``), the cap fits' (``cap_sigma_px``) and
-    the level's own (the offsets' variance over the weights' effective count): the cap fits alone at
-    the first pair, the inverse-variance weight once the level is known. The level uses only the pairs
-    before the current one."""
+    frame), shrunk towards no offset by the prior ``N(0, prior_sigma_px²)`` while few pairs are in.
+    :meth:`blend` gives the pair's disparity from the axis less the level and the cap fits, weighed by
+    their variances — the axis's (``axis_sigma_px``), the cap fits' (``cap_sigma_px``) and the level's
+    own: at the first pair about the plain mean of the two, the inverse-variance weight once the level
+    is known. The level uses only the pairs before the current one."""
 
-    def __init__(self, tau_s: float, axis_sigma_px: float, cap_sigma_px: float):
-        if not (tau_s > 0 and axis_sigma_px > 0 and cap_sigma_px > 0):
-            raise ValueError(f"AxisLevel: expected tau_s, axis_sigma_px and cap_sigma_px > 0, "
-                             f"got {tau_s!r}, {axis_sigma_px!r}, {cap_sigma_px!r}")
+    def __init__(self, tau_s: float, axis_sigma_px: float, cap_sigma_px: float, prior_sigma_px: float):
+        if not (tau_s > 0 and axis_sigma_px > 0 and cap_sigma_px > 0 and prior_sigma_px > 0):
+            raise ValueError(f"AxisLevel: expected tau_s, axis_sigma_px, cap_sigma_px and prior_sigma_px > 0, "
+                             f"got {tau_s!r}, {axis_sigma_px!r}, {cap_sigma_px!r}, {prior_sigma_px!r}")
         self.tau_s = float(tau_s)
         self._va, self._vc = float(axis_sigma_px) ** 2, float(cap_sigma_px) ** 2
+        self._p0 = 1.0 / float(prior_sigma_px) ** 2  # the prior's precision (1/px²)
         self.reset()
 
     def reset(self) -> None:
         self._s0 = self._s1 = self._s2 = 0.0  # Σw, Σw·offset, Σw²
         self._t: float | None = None
 
+    def _data_precision(self) -> float:
+        """What the pairs so far tell of the level (1/px²): their effective count ``(Σw)² / Σw²`` over
+        the variance of one offset (the axis's and the cap fits' together)."""
+        return self._s0 * self._s0 / self._s2 / (self._va + self._vc) if self._s0 > 0 else 0.0
+
     @property
     def level_px(self) -> float:
-        """The axis's offset from the cap fits (px; 0 before the first pair)."""
-        return self._s1 / self._s0 if self._s0 > 0 else 0.0
+        """The axis's offset from the cap fits (px): the pairs' weighted mean, shrunk towards 0 by the prior."""
+        if self._s0 <= 0:
+            return 0.0
+        d = self._data_precision()
+        return d * (self._s1 / self._s0) / (d + self._p0)
 
     @property
     def level_var_px2(self) -> float:
-        """The level's variance (px²): the offsets' (axis and cap fits together) over the effective count."""
-        return (self._va + self._vc) * self._s2 / (self._s0 * self._s0) if self._s0 > 0 else math.inf
+        """The level's variance (px²)."""
+        return 1.0 / (self._data_precision() + self._p0)
 
     def axis_weight(self) -> float:
         """The axis's share of the pair's disparity: its variance with the level's against the cap fits'."""

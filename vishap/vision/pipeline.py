@@ -122,7 +122,7 @@ class VisionPipeline:
         self._disp_t: float | None = None
         rc = self.config.refine
         # the side-edge axis's offset from the cap fits (_refine_pair; None: the fixed axis_weight mean)
-        self.axis_level = (AxisLevel(rc.axis_level_s, rc.axis_sigma_px, rc.cap_sigma_px)
+        self.axis_level = (AxisLevel(rc.axis_level_s, rc.axis_sigma_px, rc.cap_sigma_px, rc.axis_prior_px)
                            if rc.method == "axis" and rc.axis_level_s > 0 else None)
         self._t_frame = 0.0                 # the frame being processed (the level's clock)
         self._refine_ms = 0.0

@@ -207,7 +207,8 @@ class RefineConfig:
     axis_level_s: float = 3.0       # the axis's offset from the cap fits followed over this time constant and taken
     #   off (axis_disparity.AxisLevel; 0: off, the fixed axis_weight mean); the shares then come from …
     axis_sigma_px: float = 0.16     # … the noise of the axis's disparity and …
-    cap_sigma_px: float = 0.25      # … the cap fits' (their spread about their means on wall 1 and button 2)
+    cap_sigma_px: float = 0.25      # … the cap fits' (their spread about their means on wall 1 and button 2),
+    axis_prior_px: float = 0.15     # … and the level's prior σ about no offset (the axis's offsets on the renders: 0.07–0.17 px)
     axis_at_cap: bool = False       # the axis's disparity at the cap centre's row (extrapolated) instead of at
     #   the mean row of its edge points, where the line is best known (a point 0.6–0.9 radii behind the cap)
 
