@@ -159,31 +159,6 @@ def test_the_renderer_holds_a_device_above_the_surface_there_while_it_renders_th
     assert c.state_code == 0 and c.F_hold is None  # the interaction is over: free, the servo holds again
 
 
-def test_under_a_resting_finger_the_hold_pulls_without_the_friction_share():
-    """A finger resting on the face keeps it from floating off: one encoder count over the band's edge
-    the hold then gives the spring's few mN, not the friction's worth that unstuck the arm and slid
-    the face away from the pad; far over the band it still pulls (spring and damping)."""
-    scene = load_scene("wall")
-    fr = 0.04
-    c = ContactRenderer(scene.objects, max_force_n=8.5, hold_friction_n=fr)
-    z0 = np.zeros(3)
-    top = scene.objects[0].centre[2]
-    c.update(0.0, np.array([0.2, 0.0, top - 0.0002]), z0, 0, True, False, "track")  # dipped in: surface
-    just_over = np.array([0.2, 0.0, top + HOLD_BAND_M + 3e-6])
-    c.update(0.001, just_over, z0, 0, True, False, "track")
-    assert c.F_hold[2] == pytest.approx(-800.0 * 3e-6 - fr)  # nobody on it: the friction's worth
-    c.update(0.002, just_over, z0, 0, True, False, "track", resting=True)
-    assert c.F_hold[2] == pytest.approx(-800.0 * 3e-6) and abs(c.F_hold[2]) < 0.1 * fr
-    c.update(0.003, np.array([0.2, 0.0, top + 0.0004]), np.array([0.0, 0.0, 0.05]), 0, True, False, "track", resting=True)
-    assert c.F_hold[2] == pytest.approx(-800.0 * (0.0004 - HOLD_BAND_M) - 2.0 * 0.05)
-    play = RestPlay()
-    assert not play.resting
-    play.apply(np.array([0.1, 0.0, 0.05]), (0.0, 0.0, 1.0), 0.0005, True)
-    assert play.resting  # the play's state is what the servo step hands the renderer
-    play.apply(np.array([0.1, 0.0, 0.05]), (0.0, 0.0, 1.0), 0.003, True)
-    assert not play.resting
-
-
 def test_the_servo_step_hold_cancels_the_device_friction_from_its_parameters():
     from vishap.runtime.assembly import make_servo_step, open_device
 

@@ -186,11 +186,12 @@ def _overlay(st, pair, row, dev, target, t, extra=()):
 
 
 def meta(cfg: DemoConfig, *, rig, T_true, T_est, calib_report, scene, force_limit_n: float, continuous_force_n: float,
-         hold_friction_n: float = float("nan"), mode: str = "batch", source: str | None = None,
+         hold_friction_n: float = float("nan"), hold_ramp_m: float = float("nan"), mode: str = "batch",
+         source: str | None = None,
          device: str = "sim") -> dict:
-    """The log's metadata: one schema for batch and live runs (``mode``). ``hold_friction_n``: the
-    device friction the servo's surface hold cancels (:class:`~vishap.runtime.core.ContactRenderer`;
-    replay renders the hold with it)."""
+    """The log's metadata: one schema for batch and live runs (``mode``). ``hold_friction_n``,
+    ``hold_ramp_m``: the device friction the servo's surface hold cancels and the height over which
+    its share grows (:class:`~vishap.runtime.core.ContactRenderer`; replay renders the hold with them)."""
     import vishap
 
     from vishap.apps.log import code_version
@@ -212,6 +213,7 @@ def meta(cfg: DemoConfig, *, rig, T_true, T_est, calib_report, scene, force_limi
         "force_limit_n": force_limit_n,
         "continuous_force_n": continuous_force_n,
         "hold_friction_n": hold_friction_n,
+        "hold_ramp_m": hold_ramp_m,
         "object": {"name": obj.name, "normal": np.asarray(obj.normal, float), "centre": np.asarray(obj.centre, float),
                    "target": getattr(obj.mode, "target", "projection")},
         "python": sys.version.split()[0],

@@ -98,7 +98,8 @@ class LiveCycle:
         lim = c.step.device.limits
         return {"channels": self.log.channels, "stats": dict(c.stats), "guard_counts": dict(c.step.guard.counts),
                 "wall": dict(c.wall), "peak_force_n": float(lim.peak_force_n),
-                "continuous_force_n": float(lim.continuous_force_n), "hold_friction_n": c.step.contact.hold_friction_n}
+                "continuous_force_n": float(lim.continuous_force_n), "hold_friction_n": c.step.contact.hold_friction_n,
+                "hold_ramp_m": c.step.contact.hold_ramp_m}
 
 
 def _live_view(rig, T_robot_cam, scene, vision):
@@ -345,7 +346,7 @@ def run_live_loop(cfg: DemoConfig, *, out, source, rig, T_robot_cam, calib_repor
     log.channels.update(res["channels"])
     # the device's limits as its driver reports them at start-up
     log.meta["force_limit_n"], log.meta["continuous_force_n"] = res["peak_force_n"], res["continuous_force_n"]
-    log.meta["hold_friction_n"] = res["hold_friction_n"]
+    log.meta["hold_friction_n"], log.meta["hold_ramp_m"] = res["hold_friction_n"], res["hold_ramp_m"]
     res["guard_counts"]["frame_dropped"] += len(dropped_frames)
     summary = write_outputs(out, log, stats={**res["stats"], "frames_dropped": len(dropped_frames)},
                             guard_counts=res["guard_counts"])

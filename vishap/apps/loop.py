@@ -52,7 +52,7 @@ class Demo:
         self.log.meta.update(assemble.meta(
             cfg, rig=st.rig, T_true=st.T_true, T_est=st.T_est, calib_report=st.calib_report, scene=st.scene,
             force_limit_n=st.force_limit_n, continuous_force_n=float(st.plant.limits.continuous_force_n),
-            hold_friction_n=st.cycle.step.contact.hold_friction_n),
+            hold_friction_n=st.cycle.step.contact.hold_friction_n, hold_ramp_m=st.cycle.step.contact.hold_ramp_m),
             sleeve_finger_dir=st.cycle.finger.finger_dir)
         self.script = st.script
         self.n = np.asarray(st.scene_object.normal, float)

@@ -135,7 +135,8 @@ def replay(log_path, *, out=None, atol: float = 0.0, progress: bool = False) -> 
     scene = load_scene(cfg.scene)
     scene_step = make_scene_step(make_world(cfg, scene, rig, T_est), T_est)
     contact = ContactRenderer(scene.objects, max_force_n=float(meta["force_limit_n"]), dt=1.0 / cfg.servo_hz,
-                              hold_friction_n=float(meta.get("hold_friction_n", 0.0)))
+                              hold_friction_n=float(meta.get("hold_friction_n", 0.0)),
+                              hold_ramp_m=float(meta.get("hold_ramp_m", 0.0)))
     action_of = {code: name for name, code in GUARD_CODES.items()}
     s, sv = ch.get("scene", {}), ch["servo"]
     records = {0: TargetRecord()}  # by sequence number; 0: the servo had no record yet

@@ -200,15 +200,15 @@ class ContactRenderer:
     kept pulling there, so a landing finger's light push (0.03 N) unstuck the arm and the face fell
     away under the pad (contact made twice). The band is narrow because the demos' fingers come to
     rest at the surface: a face waiting higher is pushed down that far by the landing pad and, light,
-    ran ahead of it (contact made twice on faces waiting 0.1 mm up). Under a finger that rests on the
-    face (``resting``) the pull has no friction share: the finger keeps the face from floating off, and
-    the friction's worth switching on as the encoder's reading crossed the band's edge by one count (the
-    face 53 µm up under a pad landing at 1 mm/s) unstuck the arm, which slid 60 µm down and away from
-    the pad (contact made twice).
+    ran ahead of it (contact made twice on faces waiting 0.1 mm up). The friction's share grows over
+    ``hold_ramp_m`` beyond the band (one encoder count at the tip, from the device's parameters), so
+    the pull is continuous in the height the encoders read: switched on whole at the band's edge, a
+    reading one count over it (a face 53 µm up under a pad landing at 1 mm/s) unstuck the arm, which
+    slid 60 µm down and away from the pad (contact made twice).
     """
 
     def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003, dt: float = 0.001,
-                 hold_friction_n: float = 0.0):
+                 hold_friction_n: float = 0.0, hold_ramp_m: float = 0.0):
         from vishap.robot.object_gain import ObjectGainScheduler
         from vishap.world.force_laws import make_law
 
@@ -221,6 +221,7 @@ class ContactRenderer:
         self._hold = [(law.normal_force(_HOLD_PROBE_M) / _HOLD_PROBE_M, float(getattr(law, "c", 0.0)))
                       for law in self.laws]
         self.hold_friction_n = float(hold_friction_n)
+        self.hold_ramp_m = float(hold_ramp_m)
         self.F_hold = None  # the hold's force (robot frame, N) at the last update, or None
 
     def reset(self) -> None:
@@ -242,11 +243,9 @@ class ContactRenderer:
         return LAMBDA_CODES[self.gain.state]
 
     def update(self, t: float, p_device, v_device, subject: int, imminent: bool, in_contact: bool, action: str,
-               touch_in_s: float = math.inf, resting: bool = False):
+               touch_in_s: float = math.inf):
         """``(F_law or None, Λ robot frame 3×3, force scale)`` for servo time ``t``; ``touch_in_s``: the
-        predicted time until the tracked finger reaches the device's face (the scheduler's early handover);
-        ``resting``: the tracked finger rests on the face (:attr:`RestPlay.resting`) — the hold then pulls
-        with the spring and damping only, without the friction's share (see the class)."""
+        predicted time until the tracked finger reaches the device's face (the scheduler's early handover)."""
         gain = self.gain
         if subject != self.subject:
             if self.subject >= 0:
@@ -273,7 +272,8 @@ class ContactRenderer:
             w = min(1.0, 2.0 * (rel + depth) / rel)  # 1 down to −release_m/2, then fading to 0 at −release_m
             excess = -depth - HOLD_BAND_M  # the height beyond the band
             if excess > 0.0:
-                fr = 0.0 if resting else self.hold_friction_n
+                ramp = self.hold_ramp_m
+                fr = self.hold_friction_n * (min(1.0, excess / ramp) if ramp > 0.0 else 1.0)
                 f = min(0.0, -(k * excess + fr + c * vn) * w)  # pulls toward the surface only
             else:  # in the band: only the damping of a face moving away, continuous with the law's at the surface
                 f = min(0.0, -c * vn * w)
@@ -303,11 +303,6 @@ class RestPlay:
 
     def reset(self) -> None:
         self._a = None
-
-    @property
-    def resting(self) -> bool:
-        """Whether the play acts: the tracked finger rests on the face (as of the last :meth:`apply`)."""
-        return self._a is not None
 
     def apply(self, X, normal, gap_m: float, surface: bool, finger_velocity=(0.0, 0.0, 0.0)):
         """``X`` (3, or None) with the play applied; ``gap_m`` the tracked pad's height over the face
@@ -395,7 +390,8 @@ class ServoStep:
         self.press_m = float(press_m)
         params = self.device.params
         self.contact = ContactRenderer(objects, max_force_n=float(self.device.limits.peak_force_n), engage_m=engage_m,
-                                       dt=float(params.dt), hold_friction_n=float(params.coulomb_friction_n))
+                                       dt=float(params.dt), hold_friction_n=float(params.coulomb_friction_n),
+                                       hold_ramp_m=float(params.tip_resolution_m))
         self.play = RestPlay() if play is None else play
         self.last_action = "idle"
         self._key = None
@@ -451,7 +447,7 @@ class ServoStep:
         normal = None if rec.subject < 0 else self._normals[rec.subject]
         finger_m, touch_in, gap = finger_approach(rec, t, p_dev, normal)
         F_law, L, scale = self.contact.update(t, p_dev, dev.v_robot, rec.subject, rec.imminent, rec.in_contact, action,
-                                              touch_in, self.play.resting)
+                                              touch_in)
         self._rendering = F_law is not None
         X_ee = self.play.apply(X_ee, normal, gap, self.contact.gain.state != FREE, rec.finger_velocity)
         ctrl = self.controller
