@@ -94,6 +94,7 @@ def test_replay_reproduces_vision_world_and_tactile(run, tmp_path):
     rep = replay(out, out=tmp_path)
     assert rep["identical"] and rep["same_code"], rep
     # the surface hold too, with the device friction the run's hold cancelled
+    assert meta["hold_ramp_m"] == DEFAULT.tip_resolution_m
     assert meta["hold_friction_n"] == DEFAULT.coulomb_friction_n and rep["world"]["F_hold"] == 0.0
     for part in ("vision", "world", "tactile"):
         assert rep[part] and all(v == 0.0 for v in rep[part].values()), part

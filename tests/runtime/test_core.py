@@ -159,6 +159,25 @@ def test_the_renderer_holds_a_device_above_the_surface_there_while_it_renders_th
     assert c.state_code == 0 and c.F_hold is None  # the interaction is over: free, the servo holds again
 
 
+def test_the_holds_friction_share_grows_over_one_encoder_count_beyond_the_band():
+    """With ``hold_ramp_m`` the friction's share of the pull grows from 0 at the band's edge to whole
+    one ramp beyond it, so the pull is continuous in the height the encoders read: a reading one
+    small step over the edge no longer unsticks the arm under a landing pad."""
+    scene = load_scene("wall")
+    fr, ramp = 0.04, 3e-5
+    c = ContactRenderer(scene.objects, max_force_n=8.5, hold_friction_n=fr, hold_ramp_m=ramp)
+    z0 = np.zeros(3)
+    top = scene.objects[0].centre[2]
+    c.update(0.0, np.array([0.2, 0.0, top - 0.0002]), z0, 0, True, False, "track")  # dipped in: surface
+    pulls = []
+    for e in (1e-7, 3e-6, 1.5e-5, 3e-5, 6e-5):
+        c.update(0.001, np.array([0.2, 0.0, top + HOLD_BAND_M + e]), z0, 0, True, False, "track")
+        assert c.F_hold[2] == pytest.approx(-800.0 * e - fr * min(1.0, e / ramp))
+        pulls.append(-c.F_hold[2])
+    assert pulls[0] < 1e-3 and pulls[1] < 0.2 * fr and pulls[3] > fr  # from nothing to more than the friction
+    assert np.all(np.diff(pulls) > 0)
+
+
 def test_the_servo_step_hold_cancels_the_device_friction_from_its_parameters():
     from vishap.runtime.assembly import make_servo_step, open_device
 
@@ -166,6 +185,8 @@ def test_the_servo_step_hold_cancels_the_device_friction_from_its_parameters():
     dev = open_device("sim", passive_object=scene.passive_object.for_mujoco())
     step = make_servo_step(dev, scene)
     assert step.contact.hold_friction_n == dev.params.coulomb_friction_n > 0.0
+    # its share grows over one encoder count at the tip: the data sheet's 0.03 mm resolution
+    assert step.contact.hold_ramp_m == pytest.approx(dev.params.tip_resolution_m) == pytest.approx(3.2e-5, rel=0.05)
 
 
 def test_the_rest_play_holds_the_lateral_target_under_a_resting_finger_and_follows_larger_moves():
