@@ -40,7 +40,8 @@ class PipelineConfig:
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
     refine: RefineConfig = field(default_factory=lambda: RefineConfig(method="axis"))  # the chosen pair's
-    #   disparity also from the finger's side edges: 3-D RMS 1.95–2.48 → 1.51–2.08 mm on the standard sequences
+    #   disparity also from the finger's side edges, levelled on the cap fits: 3-D RMS 1.95–2.48 → 1.43–2.01 mm
+    #   on the standard sequences (docs/vision.md)
     tip_circle_m: float = 0.0048    # radius of the test circle at the fingertip (0.6 of an 8 mm cap): K = f · tip_circle_m
     z_default_m: float = 0.6        # depth used for r = K/z before the first 3-D fix
     z_search_m: tuple[float, ...] = (0.45, 0.8)  # other depths tried when a full-frame search fails

@@ -171,8 +171,9 @@ class RefineConfig:
 
     ``method``: ``"none"`` (the masks' cap fits alone); ``"axis"`` (the pipeline's default) — the
     disparity of the finger's axis from its two side edges behind the cap on the views' skin masks,
-    on one rectified row (:mod:`vishap.vision.axis_disparity`), averaged with the cap fits' disparity
-    (``axis_weight``); ``"edges"`` — the cap's silhouette
+    on one rectified row (:mod:`vishap.vision.axis_disparity`), blended with the cap fits' disparity —
+    levelled on them over ``axis_level_s`` and weighed by the fits' noise (``AxisLevel``; 0: the fixed
+    ``axis_weight`` mean); ``"edges"`` — the cap's silhouette
     located to a fraction of a pixel in each image (colour profiles across the edge) and one circle
     pair fitted to both views with a shared rectified row and radius; ``"edges_separate"`` — the
     same edges, a circle per view; ``"match"`` — ZNCC of the left cap patch along the right
