@@ -90,7 +90,7 @@ class World:
     the waiting point ignores moves under ``deadband_m``;
     ``freeze_s`` before the touch (the later of the reach fit's time and the straight line's at the closing
     speed; never by the height of one noisy sample) it is frozen on the newest sample's landing point
-    (the dead-band applied) and stays latched while the finger is near — one sample seeing the touch,
+    (whole, not dead-banded against the plan) and stays latched while the finger is near — one sample seeing the touch,
     not yet felt by the device, does not release it either; it moves only when the landing would leave
     half the finger's room on the passive face (``inside_m`` inside its edge). Over the last ``runup_s``
     the target runs up sideways at the finger's fitted velocity so that the finger lands on a face
@@ -470,8 +470,9 @@ class World:
         if frozen is None:
             frozen = self.hold_m > h > -self.contact_margin_m
         if frozen:  # hold the meeting point, do not chase noise (nor the extrapolated finger under the surface)
-            if self.held is None:  # the sample that freezes it is the newest: the dead-band applies to it too
-                self.held = self._plan_to(c, subj)
+            if self.held is None:  # the freeze takes the newest sample's landing point whole: the dead-banded plan
+                # was made up to 100 ms earlier, from samples 1–3 mm short of a slowing finger's landing
+                self.held = self.plan = np.array(c, dtype=float)
             elif self.replan_m > 0.0 and _tangential(c - self.held, subj.normal) > self.replan_m:
                 self.held, self._run = c, None  # re-planned only to keep the finger on the face
             return self.held.copy()
