@@ -82,11 +82,6 @@ class PhantomParams:
     nominal_radius_m: float = 0.215
     #: rad, encoder resolution: the data sheet's nominal position resolution 0.03 mm at the nominal radius
     encoder_resolution_rad: float = 1.5e-4
-
-    @property
-    def tip_resolution_m(self) -> float:
-        """m, one encoder count at the tip: the nominal position resolution (0.03 mm)."""
-        return self.encoder_resolution_rad * self.nominal_radius_m
     #: N·m, per-motor peak torque (amplifier current limit × torque constant, at the joint): the peak
     #: force at each joint's lever in the nominal pose (θ1: the nominal radius, θ2: l1, θ3: l2); the
     #: motors' type is not in the data sheet, so these are the figures the peak force implies
@@ -102,6 +97,11 @@ class PhantomParams:
     def dt(self) -> float:
         """Servo period (s)."""
         return 1.0 / self.servo_rate_hz
+
+    @property
+    def tip_resolution_m(self) -> float:
+        """m, one encoder count at the tip: the nominal position resolution (0.03 mm)."""
+        return self.encoder_resolution_rad * self.nominal_radius_m
 
     @property
     def gravity_coefficients(self) -> tuple[float, float]:
