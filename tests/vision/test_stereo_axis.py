@@ -370,3 +370,18 @@ def test_the_pipeline_follows_the_axis_level_by_default_and_not_without_it(ideal
     assert pipe.refine_stats[1] >= 10 and pipe.axis_level.level_px != 0.0
     pipe.reset_tracking()
     assert pipe.axis_level.level_px == 0.0 and pipe.axis_level.axis_weight() < w0
+
+
+def test_the_levels_settings_are_checked_by_name():
+    """A negative or infinite time constant, or a σ that is not positive, is refused with the field's
+    name (a negative constant used to turn the level off without a word)."""
+    from vishap import ConfigError
+    from vishap.vision.stereo import RefineConfig
+
+    assert RefineConfig(method="axis", axis_level_s=0.0).axis_level_s == 0.0  # 0: the fixed mean
+    for kw, field in ((dict(axis_level_s=-1.0), "refine.axis_level_s"), (dict(axis_level_s=float("inf")), "refine.axis_level_s"),
+                      (dict(axis_sigma_px=0.0), "refine.axis_sigma_px"), (dict(cap_sigma_px=-0.1), "refine.cap_sigma_px"),
+                      (dict(axis_prior_px=float("nan")), "refine.axis_prior_px")):
+        with pytest.raises(ConfigError) as e:
+            RefineConfig(method="axis", **kw)
+        assert e.value.field == field

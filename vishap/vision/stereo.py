@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from vishap._core.errors import VisionError
+from vishap._core.errors import ConfigError, VisionError
 from vishap.vision.axis_disparity import AxisLevel, axis_disparity, axis_lines
 from vishap.vision.rig import StereoRig
 
@@ -216,6 +216,13 @@ class RefineConfig:
     def __post_init__(self) -> None:
         if self.method not in ("none", "edges", "edges_separate", "match", "axis"):
             raise VisionError(f"refine method: expected none, edges, edges_separate, match or axis, got {self.method!r}")
+        if not (isinstance(self.axis_level_s, (int, float)) and 0.0 <= self.axis_level_s < math.inf):
+            raise ConfigError(f"expected a time constant ≥ 0 s (0: no level), got {self.axis_level_s!r}",
+                              field="refine.axis_level_s")
+        for name in ("axis_sigma_px", "cap_sigma_px", "axis_prior_px"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0.0 < v < math.inf):
+                raise ConfigError(f"expected a noise σ > 0 px, got {v!r}", field=f"refine.{name}")
 
 
 @dataclass
