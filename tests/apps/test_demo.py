@@ -154,6 +154,28 @@ def test_replay_detects_a_log_that_differs_from_what_the_core_computes(run, tmp_
     assert not rep["identical"] and rep["vision"]["uv_left"] > 1.0
 
 
+@pytest.mark.parametrize("key, value", [("hold_friction_n", float("nan")), ("hold_ramp_m", -1e-5),
+                                        ("force_limit_n", float("inf"))])
+def test_replay_refuses_a_log_whose_force_settings_are_not_finite_or_negative(run, tmp_path, key, value):
+    """A log whose meta holds a NaN, infinite or negative force setting is refused with one error naming the
+    log and the field, and writes nothing: replayed, it would put a NaN or a wrong force in every held tick."""
+    from vishap._core.errors import ConfigError
+    out, _, _, _ = run
+    with np.load(out / "log.npz", allow_pickle=False) as z:
+        arrays = {k: z[k].copy() for k in z.files}
+    meta = json.loads(str(arrays["meta"]))
+    meta[key] = value
+    arrays["meta"] = np.array(json.dumps(meta))
+    d = tmp_path / "bad"
+    d.mkdir()
+    (d / "frames").symlink_to(out / "frames", target_is_directory=True)
+    np.savez_compressed(d / "log.npz", **arrays)
+    with pytest.raises(ConfigError) as err:
+        replay(d, out=tmp_path / "rep")
+    assert err.value.field == f"meta.{key}" and str(d / "log.npz") in str(err.value)
+    assert not (tmp_path / "rep").exists()
+
+
 def test_live_loop_renders_the_wall_law_on_the_recorded_frames(run, tmp_path):
     """Live mode (servo cycle in its own process, mailboxes) on the demo's frames played back at 30 Hz,
     the simulated device pressed by the recording's finger: the wall's law must be rendered."""

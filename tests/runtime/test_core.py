@@ -126,6 +126,20 @@ def test_servo_step_holds_a_pressed_device_while_vision_has_lost_the_finger_and_
     assert 300 <= actions.index("retreat") <= 400  # 0.3 s after the device is let go (it rises out first)
 
 
+@pytest.mark.parametrize("arg, value", [("hold_friction_n", float("nan")), ("hold_ramp_m", -3e-5),
+                                        ("max_force_n", 0.0), ("max_force_n", float("inf")),
+                                        ("hold_friction_n", "0.04 N")])
+def test_the_renderer_refuses_a_setting_that_is_not_a_finite_number_in_range_naming_it(arg, value):
+    """A NaN friction or a negative ramp would put a NaN or a pull away from the face into every held tick."""
+    from vishap._core.errors import ConfigError
+
+    kwargs = {"max_force_n": 8.5, arg: value}
+    with pytest.raises(ConfigError) as err:
+        ContactRenderer(load_scene("wall").objects, **kwargs)
+    assert err.value.field == arg
+    ContactRenderer(load_scene("wall").objects, max_force_n=8.5, hold_friction_n=0.0, hold_ramp_m=0.0)
+
+
 def test_the_renderer_holds_a_device_above_the_surface_there_while_it_renders_the_surface():
     """Over the band the hold pulls with the law's spring on the height beyond it, its damping and the
     arm's friction (so it brings the face into the band); inside the band only the damping of a face

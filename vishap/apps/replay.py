@@ -134,9 +134,13 @@ def replay(log_path, *, out=None, atol: float = 0.0, progress: bool = False) -> 
 
     scene = load_scene(cfg.scene)
     scene_step = make_scene_step(make_world(cfg, scene, rig, T_est), T_est)
-    contact = ContactRenderer(scene.objects, max_force_n=float(meta["force_limit_n"]), dt=1.0 / cfg.servo_hz,
-                              hold_friction_n=float(meta.get("hold_friction_n", 0.0)),
-                              hold_ramp_m=float(meta.get("hold_ramp_m", 0.0)))
+    try:
+        contact = ContactRenderer(scene.objects, max_force_n=meta["force_limit_n"], dt=1.0 / cfg.servo_hz,
+                                  hold_friction_n=meta.get("hold_friction_n", 0.0),
+                                  hold_ramp_m=meta.get("hold_ramp_m", 0.0))
+    except ConfigError as e:  # named as the log's meta holds it
+        field = f"meta.{'force_limit_n' if e.field == 'max_force_n' else e.field}"
+        raise ConfigError(e.reason, file=folder / "log.npz" if log_path.is_dir() else log_path, field=field) from None
     action_of = {code: name for name, code in GUARD_CODES.items()}
     s, sv = ch.get("scene", {}), ch["servo"]
     records = {0: TargetRecord()}  # by sequence number; 0: the servo had no record yet

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vishap._core.errors import ConfigError
 from vishap.robot.device import DeviceState
 from vishap.robot.kinematics import tip_state_scalar
 from vishap.robot.object_gain import ENGAGED, FREE, SURFACE
@@ -212,6 +213,15 @@ class ContactRenderer:
         from vishap.robot.object_gain import ObjectGainScheduler
         from vishap.world.force_laws import make_law
 
+        for name, value, low in (("max_force_n", max_force_n, "> 0"), ("hold_friction_n", hold_friction_n, "≥ 0"),
+                                 ("hold_ramp_m", hold_ramp_m, "≥ 0")):
+            # a NaN here would reach the device as a NaN force in every held tick (the scheduler checks its own)
+            try:
+                v = float(value)
+            except (TypeError, ValueError):
+                v = math.nan
+            if not (math.isfinite(v) and (v > 0.0 if low == "> 0" else v >= 0.0)):
+                raise ConfigError(f"expected a finite number {low}, got {value!r}", field=name)
         self.objects = list(objects)
         self.laws = [make_law(o, max_force_n=max_force_n) for o in self.objects]
         self.gain = ObjectGainScheduler(engage_m=engage_m, dt=dt)
