@@ -147,27 +147,27 @@ def replay(log_path, *, out=None, atol: float = 0.0, progress: bool = False) -> 
     F_law_new = np.zeros_like(sv["F_law"])
     F_hold_new = np.zeros_like(sv["F_law"])
     lam_new = np.zeros(len(sv["t"]))
-    events = sorted([(float(t), 0, i) for i, t in enumerate(s.get("t", []))] +
-                    [(float(t), 1, i) for i, t in enumerate(sv["t"])])
-    for t, kind, i in events:
-        if kind == 0:
-            r = by_t[float(s["t_sample"][i])]
-            rec, inter, p_pad = scene_step.step(float(s["t_sample"][i]), r["found"], r["p_cam"], r["confidence"],
-                                                s["device_point"][i], calibrated=bool(s["calibrated"][i]),
-                                                lost=r["lost"])
-            records[rec.seq] = rec
-            log_scene_row(new, t, rec, inter, p_pad, s["device_point"][i], mount, 0.0)
-        else:
-            rec = records[int(sv["record_seq"][i])]
-            t_i, p_i = float(sv["t"][i]), sv["device_point"][i]
-            _, touch_in, _ = finger_approach(rec, t_i, p_i, None if rec.subject < 0 else scene.objects[rec.subject].normal)
-            F, _, _ = contact.update(t_i, p_i, sv["v_device"][i], rec.subject, rec.imminent, rec.in_contact,
-                                     action_of[int(sv["guard"][i])], touch_in)
-            if F is not None:
-                F_law_new[i] = F
-            if contact.F_hold is not None:
-                F_hold_new[i] = contact.F_hold
-            lam_new[i] = contact.state_code
+    # the scene step reads only the log (vision, the device point it used) and the servo ticks only the
+    # records it made, so the rows go first, then the ticks: a live run stamps a row with its frame's
+    # own (continuous) time, which can fall after the first tick that already used the row's record
+    for i, t in enumerate(s.get("t", [])):
+        r = by_t[float(s["t_sample"][i])]
+        rec, inter, p_pad = scene_step.step(float(s["t_sample"][i]), r["found"], r["p_cam"], r["confidence"],
+                                            s["device_point"][i], calibrated=bool(s["calibrated"][i]),
+                                            lost=r["lost"])
+        records[rec.seq] = rec
+        log_scene_row(new, float(t), rec, inter, p_pad, s["device_point"][i], mount, 0.0)
+    for i in range(len(sv["t"])):
+        rec = records[int(sv["record_seq"][i])]
+        t_i, p_i = float(sv["t"][i]), sv["device_point"][i]
+        _, touch_in, _ = finger_approach(rec, t_i, p_i, None if rec.subject < 0 else scene.objects[rec.subject].normal)
+        F, _, _ = contact.update(t_i, p_i, sv["v_device"][i], rec.subject, rec.imminent, rec.in_contact,
+                                 action_of[int(sv["guard"][i])], touch_in)
+        if F is not None:
+            F_law_new[i] = F
+        if contact.F_hold is not None:
+            F_hold_new[i] = contact.F_hold
+        lam_new[i] = contact.state_code
     if len(s.get("t", [])):
         ns = new.channel("scene").arrays()
         report["world"] = compare(s, ns, ["finger_robot", "X_d", "depth", "imminent", "in_contact", "subject"], atol)
