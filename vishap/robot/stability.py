@@ -27,6 +27,7 @@ import numpy as np
 from vishap._core.errors import DeviceError
 from vishap.robot.controller import Controller, Gains
 from vishap.robot.mjcf import PassiveObject
+from vishap.robot.params import DEFAULT
 from vishap.robot.plant import MujocoPlant
 from vishap.robot.servo import ServoLoop
 
@@ -175,7 +176,7 @@ def run_wall(spec: RunSpec) -> dict:
     return _summarise(spec, p, ref, plant.dt, ctrl, status, settle_from=0.6)
 
 
-def contact_law(mode: str, stiffness_n_m: float, damping_n_s_m: float, *, max_force_n: float = 8.5):
+def contact_law(mode: str, stiffness_n_m: float, damping_n_s_m: float, *, max_force_n: float = DEFAULT.peak_force_n):
     """Mode ``mode``'s force law on the plane z = WALL_POINT_z (normal +z), its stiffest part set to
     ``stiffness_n_m`` (a wall's spring, a key's bottom board, a fabric's penalty) and its normal
     damping to ``damping_n_s_m``; ``lambda_contact`` is the mode's contact gain. The key travels

@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from vishap.vision.rig import StereoRig
+from vishap.world.finger import TIP_RADIUS_M
 
 __all__ = ["ToyScene", "ToyFrame", "write_sequence"]
 
@@ -36,7 +37,7 @@ class ToyFrame:
 class ToyScene:
     """Draw frames with the fingertip cap centre at ``tip_cam`` (left camera frame, metres)."""
 
-    def __init__(self, rig: StereoRig, *, seed: int = 0, finger_radius_m: float = 0.008,
+    def __init__(self, rig: StereoRig, *, seed: int = 0, finger_radius_m: float = TIP_RADIUS_M,
                  skinlike_table: bool = False, noise: float = 2.0, ss: int = 4, table_bgr=None):
         self.rig, self.R, self.noise, self.ss = rig, finger_radius_m, noise, ss
         self.rng = np.random.default_rng(seed)

@@ -23,9 +23,11 @@ import math
 
 import numpy as np
 
+from vishap.robot.params import DEFAULT
+
 __all__ = ["WallSpring", "ButtonClick", "FabricFriction", "make_law", "saturate", "DEFAULT_MAX_FORCE_N"]
 
-DEFAULT_MAX_FORCE_N = 8.5  # PHANToM Premium 1.0 peak force (DESIGN.md); the device's limits override it
+DEFAULT_MAX_FORCE_N = DEFAULT.peak_force_n  # the PHANToM Premium 1.0's peak force; the device's limits override it
 
 
 def saturate(F: np.ndarray, max_force_n: float) -> np.ndarray:
