@@ -6,9 +6,17 @@ from vishap.robot.controller import Gains
 from vishap.robot.gains import GAINS_FILE, check_gains, load_gains
 
 
-def test_shipped_defaults_load_and_match_the_code_defaults():
+def test_the_code_defaults_are_the_shipped_files_gains():
+    """``Gains()`` takes every field from gains.yaml (the one home of the values), as load_gains reads it."""
+    from dataclasses import asdict
+
+    import yaml
+
+    raw = yaml.safe_load(GAINS_FILE.read_text())["gains"]
+    assert asdict(Gains()) == {k: float(v) for k, v in raw.items()}
     gains, cfg = load_gains()
     assert gains == Gains()
+    assert Gains(kp=600.0).kv == raw["kv"]  # a field given overrides only itself
     assert cfg.max_stiffness_n_m > 0
 
 

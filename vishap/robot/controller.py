@@ -25,12 +25,12 @@ The hot path (:meth:`Controller.compute`) works on floats with :mod:`math` only.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from vishap._core.errors import ConfigError
 from vishap.robot.device import DeviceLimits
+from vishap.robot.gains import Gains  # (re-exported: the controller's gains type)
 from vishap.robot.params import DEFAULT, PhantomParams
 
 __all__ = ["Gains", "Controller", "kalman_velocity_gains", "WORKSPACE_STIFFNESS_N_M", "WORKSPACE_DAMPING_N_S_M"]
@@ -66,31 +66,6 @@ def kalman_velocity_gains(dt: float, bandwidth_hz: float) -> tuple[float, float,
     P = solve_discrete_are(F.T, H.T, Q, np.array([[r]]))
     K = P @ H.T / (H @ P @ H.T + r)
     return float(dt), float(K[0, 0]), float(K[1, 0])
-
-
-@dataclass(frozen=True)
-class Gains:
-    """Controller gains: ``kp`` (N/m), ``kv`` (N·s/m), Eq. 5 filter constant ``a`` (rad/s), ramp-up (s)."""
-
-    kp: float = 800.0
-    kv: float = 20.0
-    a: float = 250.0
-    ramp_s: float = 0.5
-    #: bandwidth (Hz) of the per-joint Kalman velocity estimator on the joint angles; 0 uses the
-    #: device's own rates (the driver's backward difference)
-    velocity_hz: float = 200.0
-    #: rate (Hz) at which X_d arrives; > 0 averages the target over one sample interval (a boxcar
-    #: whose zeros fall on the sample rate and its harmonics); 0 leaves the target as it comes
-    vision_hz: float = 30.0
-
-    def __post_init__(self):
-        for name, lo, strict in (("kp", 0.0, False), ("kv", 0.0, False), ("a", 0.0, True), ("ramp_s", 0.0, False),
-                                 ("velocity_hz", 0.0, False), ("vision_hz", 0.0, False)):
-            v = getattr(self, name)
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-                raise ConfigError(f"expected a finite number, got {v!r}", field=f"gains.{name}")
-            if v < lo or (strict and v == lo):
-                raise ConfigError(f"expected {'>' if strict else '≥'} {lo}, got {v!r}", field=f"gains.{name}")
 
 
 class Controller:

@@ -10,7 +10,9 @@ naming the file and field.
 from __future__ import annotations
 
 import bisect
+import math
 import os
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -18,9 +20,8 @@ from pydantic import Field, model_validator
 
 from vishap._core.config import Schema, load_config
 from vishap._core.errors import ConfigError
-from vishap.robot.controller import Gains
 
-__all__ = ["GAINS_FILE", "GainsFile", "load_gains", "check_gains", "max_renderable_stiffness"]
+__all__ = ["GAINS_FILE", "Gains", "GainsFile", "load_gains", "check_gains", "max_renderable_stiffness"]
 
 GAINS_FILE = Path(__file__).with_name("gains.yaml")
 
@@ -73,6 +74,37 @@ class GainsFile(Schema):
     max_stiffness_n_m: float = Field(gt=0)
     stable_region: _Region
     renderable_stiffness: _Renderable | None = None
+
+
+#: the shipped file's gains: the one home of their values (``Gains()`` is them; a field given overrides it)
+_SHIPPED = load_config(GAINS_FILE, GainsFile).gains
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Controller gains: ``kp`` (N/m), ``kv`` (N·s/m), Eq. 5 filter constant ``a`` (rad/s), ramp-up (s).
+    Fields not given are the shipped ``gains.yaml``'s (unchecked here: :func:`load_gains` checks a file's
+    gains against its measured stable region)."""
+
+    kp: float = _SHIPPED.kp
+    kv: float = _SHIPPED.kv
+    a: float = _SHIPPED.a
+    ramp_s: float = _SHIPPED.ramp_s
+    #: bandwidth (Hz) of the per-joint Kalman velocity estimator on the joint angles; 0 uses the
+    #: device's own rates (the driver's backward difference)
+    velocity_hz: float = _SHIPPED.velocity_hz
+    #: rate (Hz) at which X_d arrives; > 0 averages the target over one sample interval (a boxcar
+    #: whose zeros fall on the sample rate and its harmonics); 0 leaves the target as it comes
+    vision_hz: float = _SHIPPED.vision_hz
+
+    def __post_init__(self):
+        for name, lo, strict in (("kp", 0.0, False), ("kv", 0.0, False), ("a", 0.0, True), ("ramp_s", 0.0, False),
+                                 ("velocity_hz", 0.0, False), ("vision_hz", 0.0, False)):
+            v = getattr(self, name)
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+                raise ConfigError(f"expected a finite number, got {v!r}", field=f"gains.{name}")
+            if v < lo or (strict and v == lo):
+                raise ConfigError(f"expected {'>' if strict else '≥'} {lo}, got {v!r}", field=f"gains.{name}")
 
 
 def _bracket(values: list[float], x: float) -> list[int] | None:
