@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 import textwrap
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ import pytest
 from vishap._core.errors import ConfigError
 from vishap.robot.device import Device
 from vishap.robot.drivers import ENTRY_POINT_GROUP, open_device, registered, resolve
+from vishap.world.scene import demo_passive_object
 
 # A driver written by someone else: a point mass on three orthogonal linear axes standing in for the
 # arm, commanded through the same interface (torques → Jacobian-transpose force).
@@ -73,10 +75,9 @@ def outside(module_outside, tmp_path):
 
 
 def test_sim_is_the_mujoco_plant_with_kwargs_passed_through():
-    from vishap.robot.mjcf import PassiveObject
     from vishap.robot.plant import MujocoPlant
 
-    dev = open_device("sim", passive_object=PassiveObject(mass_kg=0.02), sensor="encoder")
+    dev = open_device("sim", passive_object=replace(demo_passive_object(), mass_kg=0.02), sensor="encoder")
     assert type(dev) is MujocoPlant and dev.params.m_tip == 0.02 and dev.sensor == "encoder"
     from vishap.robot.gains import load_gains
 

@@ -4,6 +4,7 @@ import pytest
 from vishap._core.errors import ConfigError
 from vishap.robot.controller import Gains
 from vishap.robot.gains import GAINS_FILE, check_gains, load_gains
+from vishap.world.scene import demo_passive_object
 
 
 def test_the_code_defaults_are_the_shipped_files_gains():
@@ -55,7 +56,7 @@ def test_malformed_file_is_refused(tmp_path):
 def test_build_servo_uses_the_file_and_refuses_unstable_gains():
     from vishap.robot import PassiveObject, build_servo
 
-    servo = build_servo(PassiveObject(), policy="extrapolate")
+    servo = build_servo(demo_passive_object(), policy="extrapolate")
     _, cfg = load_gains()
     assert servo.controller.gains == Gains()
     assert servo.device.limits.max_stiffness_n_m == cfg.max_stiffness_n_m

@@ -1,10 +1,13 @@
 """Eq. 7 against MuJoCo's bias forces for the same parameters; Eq. 6 compensation force."""
 import mujoco
+from dataclasses import replace
+
 import numpy as np
 
 from vishap.robot import gravity, kinematics as kin
 from vishap.robot.mjcf import PassiveObject, build_model
 from vishap.robot.params import DEFAULT
+from vishap.world.scene import demo_passive_object
 
 E_INV = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 1.0]])
 
@@ -37,7 +40,7 @@ def _bias_torque(m, d, q, params):
 
 
 def test_gravity_matches_mujoco_bias(rng):
-    for obj in (None, PassiveObject(mass_kg=0.012), PassiveObject(shape="sphere", size_m=(0.01,), mass_kg=0.05)):
+    for obj in (None, replace(demo_passive_object(), mass_kg=0.012), PassiveObject(shape="sphere", size_m=(0.01,), mass_kg=0.05)):
         params = DEFAULT.with_tip_mass(0.0 if obj is None else obj.mass_kg)
         m = build_model(params, passive_object=obj)
         d = mujoco.MjData(m)

@@ -1,5 +1,6 @@
 """Plant and controller: compensation holds the arm, limits, ramp-up, refusal of bad gains and inputs."""
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -8,9 +9,9 @@ from hypothesis import given, settings, strategies as st
 from vishap._core.errors import ConfigError, DeviceError
 from vishap.robot import kinematics as kin
 from vishap.robot.controller import Controller, Gains
-from vishap.robot.mjcf import PassiveObject
 from vishap.robot.plant import MujocoPlant
 from vishap.robot.params import DEFAULT
+from vishap.world.scene import demo_passive_object
 
 
 def test_plant_reads_what_mujoco_has():
@@ -25,7 +26,7 @@ def test_plant_reads_what_mujoco_has():
 
 def test_gravity_compensation_holds_still_across_workspace():
     """Gravity compensation only (Kp = Kv = 0): the arm must not drift anywhere in the box."""
-    obj = PassiveObject(mass_kg=0.012)
+    obj = replace(demo_passive_object(), mass_kg=0.012)
     for p in [(0.12, -0.05, -0.18), (0.28, 0.05, -0.06), (0.2, 0.0, -0.12), (0.15, 0.06, -0.05), (0.29, -0.06, -0.19)]:
         plant = MujocoPlant(passive_object=obj, q0=kin.ik(np.array(p)))
         ctrl = Controller(plant.params, Gains(kp=0.0, kv=0.0, ramp_s=0.0), limits=plant.limits)
@@ -44,7 +45,7 @@ def test_without_compensation_the_arm_falls_unless_friction_holds_it():
     # without compensation; with the friction taken out, gravity pulls it away
     for friction, moved in ((0.0, True), (DEFAULT.coulomb_friction_n, False)):
         params = replace(DEFAULT, coulomb_friction_n=friction)
-        plant = MujocoPlant(params, passive_object=PassiveObject(mass_kg=0.012), q0=kin.ik(np.array([0.2, 0.0, -0.1])))
+        plant = MujocoPlant(params, passive_object=replace(demo_passive_object(), mass_kg=0.012), q0=kin.ik(np.array([0.2, 0.0, -0.1])))
         for _ in range(300):
             plant.step()
         drift = np.linalg.norm(plant.read().p_robot - [0.2, 0.0, -0.1])
@@ -52,7 +53,7 @@ def test_without_compensation_the_arm_falls_unless_friction_holds_it():
 
 
 def test_pd_reaches_target_and_ramps_up():
-    plant = MujocoPlant(passive_object=PassiveObject(mass_kg=0.012))
+    plant = MujocoPlant(passive_object=replace(demo_passive_object(), mass_kg=0.012))
     ctrl = Controller(plant.params, Gains(), limits=plant.limits)
     target = (0.22, 0.03, -0.12)
     for i in range(1500):
@@ -236,7 +237,7 @@ def test_jitter_delays_each_command_inside_the_period():
 def test_apparent_mass_grows_by_the_carried_object():
     q = kin.ik(np.array([0.2, 0.0, -0.12]))
     bare = MujocoPlant().apparent_mass(q)
-    plate = MujocoPlant(passive_object=PassiveObject(mass_kg=0.05)).apparent_mass(q)
+    plate = MujocoPlant(passive_object=replace(demo_passive_object(), mass_kg=0.05)).apparent_mass(q)
     assert np.all(bare > 0.005) and np.all(bare < 1.0)
     # a point-like object at the tip adds its mass to every direction (its small rotational inertia aside)
     assert plate - bare == pytest.approx(np.full(3, 0.05), rel=0.1)

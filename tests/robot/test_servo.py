@@ -4,7 +4,6 @@ import pytest
 
 from vishap._core.errors import ConfigError
 from vishap.robot.controller import Controller, Gains
-from vishap.robot.mjcf import PassiveObject
 from vishap.robot.plant import MujocoPlant
 from vishap.robot.servo import ServoLoop, TargetShaper
 
@@ -39,7 +38,7 @@ def test_unknown_policy_refused():
 
 @pytest.mark.parametrize("policy", ["hold", "interpolate", "extrapolate"])
 def test_servo_follows_vision_rate_target(policy):
-    plant = MujocoPlant(passive_object=PassiveObject())
+    plant = MujocoPlant(passive_object=demo_passive_object())
     servo = ServoLoop(plant, Controller(plant.params, Gains(), limits=plant.limits), policy=policy)
     X = np.array([0.215, 0.0, -0.17])
     for i in range(2000):
@@ -51,7 +50,7 @@ def test_servo_follows_vision_rate_target(policy):
 
 
 def test_holds_position_before_any_target_and_callback_force():
-    plant = MujocoPlant(passive_object=PassiveObject(), q0=[0.1, 0.2, 0.1])
+    plant = MujocoPlant(passive_object=demo_passive_object(), q0=[0.1, 0.2, 0.1])
     seen = []
 
     def law(t, p, v):
@@ -73,6 +72,7 @@ def test_holds_position_before_any_target_and_callback_force():
 
 
 from hypothesis import given, settings, strategies as st  # noqa: E402
+from vishap.world.scene import demo_passive_object
 
 garbage = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([1e308, -1e308, 0.0]))
 
@@ -85,7 +85,7 @@ garbage = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_f
 )
 def test_servo_never_writes_nan_or_over_limit(targets, forces, policy):
     """Whatever X_d and extra force arrive, every torque written to the device is finite and bounded."""
-    plant = MujocoPlant(passive_object=PassiveObject())
+    plant = MujocoPlant(passive_object=demo_passive_object())
     written = []
     write = plant.command_torque_scalar
 

@@ -63,7 +63,7 @@ class DeviceGeometry:
     base_lift_m: float = 0.010            # the base block's centre above its foot point
     stand_z_m: float | None = TABLE_Z_M
     passive_size_m: tuple[float, float, float] | None = None
-    mount_offset_robot: tuple[float, float, float] = (0.030, 0.0, 0.0)
+    mount_offset_robot: tuple[float, float, float] = (0.0, 0.0, 0.0)  # the passive object's, from the scene file
     bracket_section_m: tuple[float, float] = (0.010, 0.004)   # width × thickness of the bracket bar
 
     def with_passive(self, size_m, mount_offset_robot=None) -> DeviceGeometry:
@@ -72,8 +72,10 @@ class DeviceGeometry:
         if len(size) != 3 or not all(v > 0 and math.isfinite(v) for v in size):
             raise ConfigError(f"expected 3 positive sizes (x, y, thickness) in metres, got {size_m!r}",
                               field="passive_size_m")
-        mount = self.mount_offset_robot if mount_offset_robot is None else tuple(float(v) for v in mount_offset_robot)
-        return replace(self, passive_size_m=size, mount_offset_robot=mount)
+        if mount_offset_robot is None:  # the scene file holds it (world.scene.PassiveObject.mount_offset_m)
+            raise ConfigError("a passive object needs its mount offset (the scene file's passive_object.mount_offset_m)",
+                              field="mount_offset_robot")
+        return replace(self, passive_size_m=size, mount_offset_robot=tuple(float(v) for v in mount_offset_robot))
 
     def link_points(self, q) -> np.ndarray:
         """(K, 3) skeleton base → end-effector: the stand's foot (if any), then

@@ -37,9 +37,10 @@ def _target(t: float) -> np.ndarray:
 
 
 def _servo_loop(n: int, policy: str):
-    from vishap.robot import Controller, Gains, MujocoPlant, PassiveObject, ServoLoop
+    from vishap.robot import Controller, Gains, MujocoPlant, ServoLoop
+    from vishap.world.scene import demo_passive_object
 
-    plant = MujocoPlant(passive_object=PassiveObject())
+    plant = MujocoPlant(passive_object=demo_passive_object())
     servo = ServoLoop(plant, Controller(plant.params, Gains(), limits=plant.limits), policy=policy)
     targets = [_target(i * 1e-3) for i in range(n)]
     # precomputed X_d objects: a new array only when the 30 Hz sample changes, as vision delivers
@@ -63,9 +64,10 @@ def _servo_loop(n: int, policy: str):
 def _bare_loop():
     import mujoco
 
-    from vishap.robot import MujocoPlant, PassiveObject
+    from vishap.robot import MujocoPlant
+    from vishap.world.scene import demo_passive_object
 
-    plant = MujocoPlant(passive_object=PassiveObject())
+    plant = MujocoPlant(passive_object=demo_passive_object())
     m, d = plant.model, plant.data
     d.ctrl[:] = (0.0, 0.02, 0.05)
 
@@ -85,9 +87,10 @@ def _numpy_pd_loop(n: int):
     """PD + gravity compensation the direct way: mj_jacSite, qfrc_bias, NumPy."""
     import mujoco
 
-    from vishap.robot import MujocoPlant, PassiveObject
+    from vishap.robot import MujocoPlant
+    from vishap.world.scene import demo_passive_object
 
-    plant = MujocoPlant(passive_object=PassiveObject())
+    plant = MujocoPlant(passive_object=demo_passive_object())
     m, d = plant.model, plant.data
     site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "tip")
     jacp = np.zeros((3, m.nv))

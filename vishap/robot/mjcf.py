@@ -37,9 +37,9 @@ class PassiveObject:
     edge lengths x, y, z in the forearm frame); ``mass_kg`` ≥ 0.
     """
 
-    shape: str = "plate"
-    size_m: tuple[float, ...] = (0.040, 0.040, 0.003)
-    mass_kg: float = 0.012
+    shape: str                                  # (the scene file's passive_object: its one home;
+    size_m: tuple[float, ...]                   #  world.scene.PassiveObject.for_mujoco, demo_passive_object)
+    mass_kg: float
 
     def __post_init__(self):
         from vishap._core.errors import ConfigError

@@ -26,10 +26,10 @@ import numpy as np
 
 from vishap._core.errors import DeviceError
 from vishap.robot.controller import Controller, Gains
-from vishap.robot.mjcf import PassiveObject
 from vishap.robot.params import DEFAULT
 from vishap.robot.plant import MujocoPlant
 from vishap.robot.servo import ServoLoop
+from vishap.world.scene import demo_passive_object
 
 __all__ = ["RunSpec", "run_free_space", "run_wall", "classify", "passivity_margin", "tip_damping",
            "measured_jitter_s", "jitter_from_log", "contact_law", "SERVO_TICK_PERCENTILES", "SERVO_TICK_MS"]
@@ -85,7 +85,7 @@ class RunSpec:
 
 def _make(spec: RunSpec, q0=None):
     plant = MujocoPlant(
-        passive_object=PassiveObject(), substeps=spec.substeps, delay_ticks=spec.delay_ticks, sensor=spec.sensor, q0=q0,
+        passive_object=demo_passive_object(), substeps=spec.substeps, delay_ticks=spec.delay_ticks, sensor=spec.sensor, q0=q0,
         jitter_s=measured_jitter_s() if spec.jitter else None,
     )
     ctrl = Controller(plant.params, Gains(kp=spec.kp, kv=spec.kv, a=spec.a, ramp_s=0.0), limits=plant.limits)

@@ -17,9 +17,9 @@ from vishap._core.errors import ConfigError
 
 from vishap.robot.controller import Controller, Gains
 from vishap.robot.kinematics import ik
-from vishap.robot.mjcf import PassiveObject
 from vishap.robot.plant import MujocoPlant
 from vishap.robot.servo import ServoLoop
+from vishap.world.scene import demo_passive_object
 
 __all__ = ["CENTRE", "step_response", "ramp_response", "moving_target", "step_metrics", "finger_path", "band_rms",
            "hold_and_approach"]
@@ -28,7 +28,7 @@ CENTRE = np.array([0.200, 0.0, -0.120])
 
 
 def _loop(gains: Gains, *, p0=CENTRE, policy="hold", substeps=1, gravity_comp=True):
-    plant = MujocoPlant(passive_object=PassiveObject(), q0=ik(np.asarray(p0)), substeps=substeps)
+    plant = MujocoPlant(passive_object=demo_passive_object(), q0=ik(np.asarray(p0)), substeps=substeps)
     ctrl = Controller(plant.params, gains, limits=plant.limits)
     if not gravity_comp:
         from dataclasses import replace
@@ -185,7 +185,7 @@ def hold_and_approach(gains: Gains, scenario: str, *, seconds: float = 2.0, visi
         raise ConfigError(f"seconds = {seconds!r}: the run must outlast the {settle_s} s settling time by at least "
                           "0.1 s to leave a signal to measure", field="seconds")
     p0 = CENTRE
-    plant = MujocoPlant(passive_object=PassiveObject(), q0=ik(p0), substeps=substeps, sensor="encoder")
+    plant = MujocoPlant(passive_object=demo_passive_object(), q0=ik(p0), substeps=substeps, sensor="encoder")
     ctrl = Controller(plant.params, gains, limits=plant.limits)
     servo = ServoLoop(plant, ctrl, policy="interpolate")
     n = int(round(seconds * plant.params.servo_rate_hz))

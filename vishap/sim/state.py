@@ -28,9 +28,9 @@ class PassiveObject:
     finger touches.
     """
 
-    shape: str = "plate"
-    size_m: tuple[float, float, float] = (0.040, 0.040, 0.003)
-    mount_offset_robot: tuple[float, float, float] = (0.030, 0.0, 0.0)
+    shape: str                                  # (the scene file's passive_object: its one home)
+    size_m: tuple[float, float, float]
+    mount_offset_robot: tuple[float, float, float]
 
     def top_centre_robot(self, ee_robot) -> np.ndarray:
         return np.asarray(ee_robot, dtype=np.float64) + np.asarray(self.mount_offset_robot, dtype=np.float64)

@@ -28,6 +28,7 @@ from vishap._core.errors import ConfigError
 from vishap.world.modes import Mode, ModeDatabase, default_modes
 
 __all__ = [
+    "demo_passive_object",
     "SCENES_DIR",
     "PassiveObject",
     "WallSpec",
@@ -306,6 +307,12 @@ def load_scene(name_or_path: str | os.PathLike, *, modes: ModeDatabase | None = 
     except ConfigError as exc:
         raise _without_tags(exc, ("wall", "button", "fabric")) from None
     return Scene.from_spec(spec, modes=modes, file=p)
+
+
+def demo_passive_object():
+    """The plant's passive object (:class:`vishap.robot.mjcf.PassiveObject`) as the demos' scene files
+    give it — the wall scene's plate — for the device-only benches and tests that have no scene."""
+    return load_scene("wall").passive_object.for_mujoco()
 
 
 def _without_tags(exc: ConfigError, tags) -> ConfigError:
