@@ -131,6 +131,7 @@ class World:
         deadband_m: float = 0.001,
         settle_s: float = 0.04,
         glide_m_s: float = 0.005,
+        glide_with_finger: bool = True,
     ):
         if contact_model not in CONTACT_MODELS:
             raise ConfigError(f"contact_model must be one of {CONTACT_MODELS}, got {contact_model!r}", field="contact_model")
@@ -168,6 +169,7 @@ class World:
         if not (np.isfinite(glide_m_s) and glide_m_s >= 0.0):
             raise ConfigError(f"glide_m_s must be a finite number >= 0 (0: no glide), got {glide_m_s!r}", field="glide_m_s")
         self.settle_s, self.glide_m_s = float(settle_s), float(glide_m_s)
+        self.glide_with_finger = bool(glide_with_finger)
         tops = [o.centre + o.R[:, :2] @ (o.half * np.array(s)) for o in scene.objects for s in
                 ((1, 1), (1, -1), (-1, 1), (-1, -1))]
         self.z_safe = float(max(p[2] for p in tops)) + self.clearance_m
@@ -282,7 +284,7 @@ class World:
         # spread cost bench world's wall 6 mm of landing error at 0.2–0.3 m/s and its force–depth R²)
         if glide and not self._felt(subj, p_robot_device) and (near or confirmed):
             # (the shorter of the two times left: a poor reach fit re-timed the demos' touch 0.6 s late)
-            X = self._glide_to(t, subj, X, min(t_left, t_line), ran, reach, X_plan)
+            X = self._glide_to(t, subj, X, min(t_left, t_line), ran, reach, X_plan, v)
         else:
             self._glide = None
         via = False
@@ -373,7 +375,7 @@ class World:
         return self._within_room(v * float(np.clip(t_use - tt, -self.runup_s, self.runup_s)))
 
     def _glide_to(self, t: float, subj: SceneObject, X: np.ndarray, t_left: float, ran: bool, reach,
-                  X_plan: np.ndarray) -> np.ndarray:
+                  X_plan: np.ndarray, v_finger=None) -> np.ndarray:
         """The landing glide: the target moves from the last one towards the plan ``X`` no faster than
         the landing needs. Each sample is for the time the servo reaches it, ``tau`` (``latency_s`` + one
         sample interval + ``servo_lag_s``). The move along the surface is the run-up's own motion from
@@ -411,9 +413,28 @@ class World:
         lim = self.glide_m_s * step
         if left > step:
             lim = max(lim, n * step / left)
+        elif self.glide_with_finger and reach is not None and n > 0.0 and step > 0.0:
+            # the time left is up but the finger still slides in along the correction (a decelerating
+            # finger lands later than the line says): the creep may keep its pace — the fitted reach's,
+            # which models the deceleration (the straight line's velocity lags it by the latency) — so
+            # that the device moves no faster than glide_m_s relative to it (less what the run-up moves)
+            # — only for a finger seen to slide that way: its measured samples moved more than half the
+            # re-plan room along the correction over the last 0.3 s (a straight-down finger's fitted
+            # sideways velocity is noise: the wall demo's fast second touches then failed still_tangential)
+            vf = self.reach.tangential_velocity_at(tau)
+            if vf is not None and self._slid_along(d / n, 0.3) > 0.5 * self.replan_m:
+                pace = float(vf @ d) / n - float((base - X0) @ d) / n / step
+                lim += max(pace, 0.0) * step
         out = base + d * (lim / n) if n > lim else X.copy()
         self._glide = (tau, out.copy(), subj)
         return out
+
+    def _slid_along(self, u: np.ndarray, span_s: float) -> float:
+        """How far the finger's measured samples moved along the unit vector ``u`` over the last
+        ``span_s`` (the reach fit's consistent samples; 0 with fewer than two)."""
+        got = [(t, p) for t, p in self.reach.consistent() if t >= self.reach.samples[-1][0] - span_s] \
+            if self.reach.samples else []
+        return float((got[-1][1] - got[0][1]) @ u) if len(got) >= 2 else 0.0
 
     def _runup_path(self, subj: SceneObject, reach):
         """The run-up as a function of servo time from the fitted reach (:class:`ReachFit`), or None:
