@@ -102,8 +102,9 @@ class World:
     The landing glide (``glide_m_s`` > 0, :meth:`_glide_to`): from the finger near (``lock_m``) until
     the device feels the finger, the target is not sent to each sample's landing point at once: it
     moves with the run-up (along the finger's fitted path when the fit is sure) and corrects towards
-    the plan over the time left until ``settle_s`` before the touch, then at most ``glide_m_s``.
-    ``glide_m_s`` 0: the plan alone.
+    the plan over the time left until ``settle_s`` before the touch, then at most ``glide_m_s`` faster
+    than a finger seen sliding along the correction (``glide_with_finger``; False: ``glide_m_s``
+    absolute). ``glide_m_s`` 0: the plan alone.
     """
 
     def __init__(
