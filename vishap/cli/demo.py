@@ -72,7 +72,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rig", default=None, help="live: stereo rig file (default: the recorded folder's, else calib/rig.yaml)")
     p.add_argument("--device", default="sim",
                    help="live: 'sim' (the MuJoCo PHANToM; its finger pad follows the source's ground truth or the "
-                        "tracked finger) or a driver 'module:Class' (default sim)")
+                        "tracked finger), a driver registered in the entry-point group 'vishap.devices' "
+                        "('vishap devices' lists them) or 'module:Class' (default sim)")
     p.add_argument("--duration", type=float, default=30.0, help="live: seconds to run (default 30)")
     add_quiet_flag(p)
     add_json_flag(p)
