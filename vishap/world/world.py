@@ -285,7 +285,7 @@ class World:
         # spread cost bench world's wall 6 mm of landing error at 0.2–0.3 m/s and its force–depth R²)
         if glide and not self._felt(subj, p_robot_device) and (near or confirmed):
             # (the shorter of the two times left: a poor reach fit re-timed the demos' touch 0.6 s late)
-            X = self._glide_to(t, subj, X, min(t_left, t_line), ran, reach, X_plan, p)
+            X = self._glide_to(t, subj, X, min(t_left, t_line), ran, reach, X_plan, v)
         else:
             self._glide = None
         via = False
@@ -376,7 +376,7 @@ class World:
         return self._within_room(v * float(np.clip(t_use - tt, -self.runup_s, self.runup_s)))
 
     def _glide_to(self, t: float, subj: SceneObject, X: np.ndarray, t_left: float, ran: bool, reach,
-                  X_plan: np.ndarray, p_finger=None) -> np.ndarray:
+                  X_plan: np.ndarray, v_finger=None) -> np.ndarray:
         """The landing glide: the target moves from the last one towards the plan ``X`` no faster than
         the landing needs. Each sample is for the time the servo reaches it, ``tau`` (``latency_s`` + one
         sample interval + ``servo_lag_s``). The move along the surface is the run-up's own motion from
@@ -422,13 +422,10 @@ class World:
             # — only for a finger seen to slide that way: its measured samples moved more than half the
             # re-plan room along the correction over the last 0.3 s (a straight-down finger's fitted
             # sideways velocity is noise: the wall demo's fast second touches then failed still_tangential)
-            # — and never past the finger itself: a plan that overshoots the landing on noisy samples is
-            # not chased ahead of the finger (the fabric demo's seed 1: 4 mm past, then 5 mm/s back)
             vf = self.reach.tangential_velocity_at(tau)
-            if vf is not None and p_finger is not None and self._slid_along(d / n, 0.3) > 0.5 * self.replan_m:
+            if vf is not None and self._slid_along(d / n, 0.3) > 0.5 * self.replan_m:
                 pace = float(vf @ d) / n - float((base - X0) @ d) / n / step
-                behind = float((np.asarray(p_finger, dtype=float) - base) @ d) / n  # the finger ahead of the base
-                lim += min(max(pace, 0.0) * step, max(behind, 0.0))
+                lim += max(pace, 0.0) * step
         out = base + d * (lim / n) if n > lim else X.copy()
         self._glide = (tau, out.copy(), subj)
         return out
