@@ -285,7 +285,7 @@ class World:
         # spread cost bench world's wall 6 mm of landing error at 0.2–0.3 m/s and its force–depth R²)
         if glide and not self._felt(subj, p_robot_device) and (near or confirmed):
             # (the shorter of the two times left: a poor reach fit re-timed the demos' touch 0.6 s late)
-            X = self._glide_to(t, subj, X, min(t_left, t_line), ran, reach, X_plan, v)
+            X = self._glide_to(t, subj, X, min(t_left, t_line), ran, reach, X_plan)
         else:
             self._glide = None
         via = False
@@ -376,7 +376,7 @@ class World:
         return self._within_room(v * float(np.clip(t_use - tt, -self.runup_s, self.runup_s)))
 
     def _glide_to(self, t: float, subj: SceneObject, X: np.ndarray, t_left: float, ran: bool, reach,
-                  X_plan: np.ndarray, v_finger=None) -> np.ndarray:
+                  X_plan: np.ndarray) -> np.ndarray:
         """The landing glide: the target moves from the last one towards the plan ``X`` no faster than
         the landing needs. Each sample is for the time the servo reaches it, ``tau`` (``latency_s`` + one
         sample interval + ``servo_lag_s``). The move along the surface is the run-up's own motion from
