@@ -49,22 +49,15 @@ def test_servo_follows_vision_rate_target(policy):
     assert np.linalg.norm(plant.read().p_robot - X) < 1e-3
 
 
-def test_holds_position_before_any_target_and_callback_force():
+def test_holds_position_before_any_target_and_adds_the_extra_force():
     plant = MujocoPlant(passive_object=demo_passive_object(), q0=[0.1, 0.2, 0.1])
-    seen = []
-
-    def law(t, p, v):
-        seen.append(p.copy())
-        return np.array([0.0, 0.0, 0.5]) if t > 0.6 else None
-
-    servo = ServoLoop(plant, Controller(plant.params, Gains(), limits=plant.limits), force_callback=law)
+    servo = ServoLoop(plant, Controller(plant.params, Gains(), limits=plant.limits))
     p0 = plant.read().p_robot
     for i in range(600):
         servo.tick(i * 1e-3)
     assert np.linalg.norm(plant.read().p_robot - p0) < 1e-6
-    np.testing.assert_allclose(seen[0], p0)
     for i in range(600, 1600):
-        servo.tick(i * 1e-3)
+        servo.tick(i * 1e-3, None, np.array([0.0, 0.0, 0.5]))
     # a constant 0.5 N push against Kp moves it 0.5 / Kp up, give or take what the Coulomb friction holds
     # (0.03-0.06 N along an axis: test_coulomb_friction_at_the_tip_is_about_the_data_sheet_figure)
     kp = Gains().kp

@@ -27,7 +27,6 @@ def build_servo(
     substeps: int = 1,
     sensor: str = "exact",
     q0=None,
-    force_callback=None,
     travel=None,
 ) -> ServoLoop:
     """A :class:`ServoLoop` over a :class:`MujocoPlant` (``servo.device``, ``servo.controller``).
@@ -46,4 +45,4 @@ def build_servo(
         max_stiffness_n_m=cfg.max_stiffness_n_m,
     )
     ctrl = Controller(plant.params, gains or file_gains, limits=plant.limits)
-    return ServoLoop(plant, ctrl, policy=policy, force_callback=force_callback, travel=travel)
+    return ServoLoop(plant, ctrl, policy=policy, travel=travel)

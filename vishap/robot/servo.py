@@ -21,9 +21,7 @@ stops being extrapolated after the horizon).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
-import numpy as np
 
 from vishap._core.errors import ConfigError
 from vishap.robot.controller import Controller
@@ -151,9 +149,9 @@ class TargetShaper:
 class ServoLoop:
     """Device + controller + target shaping: one :meth:`tick` per servo period.
 
-    ``force_callback(t, p_robot, v_robot) -> F (3,) or None`` (optional) is the world's force law,
-    evaluated each tick after the read; ``extra_force_robot`` passed to :meth:`tick` is added to it.
-    Until the first target arrives the arm holds the position it had at the first tick.
+    ``extra_force_robot`` passed to :meth:`tick` (the force law's, from the core's
+    :class:`~vishap.runtime.core.ServoStep`) is added to the controller's output. Until the first
+    target arrives the arm holds the position it had at the first tick.
     """
 
     def __init__(
@@ -163,13 +161,11 @@ class ServoLoop:
         *,
         policy: str = "hold",
         horizon: float = 1.5,
-        force_callback: Callable | None = None,
         travel: TravelLimiter | None = None,
     ):
         self.device = device
         self.controller = controller
         self.shaper = TargetShaper(policy, horizon=horizon)
-        self.force_callback = force_callback
         self.travel = travel  # optional speed/acceleration limits between the shaper and the controller
         lim = controller.limits
         self._box = (tuple(float(v) for v in lim.workspace_min), tuple(float(v) for v in lim.workspace_max))
@@ -202,17 +198,13 @@ class ServoLoop:
             self._offer(t, X_d, t_sample)
         tg = self._at(t)
         travel = self.travel
-        if tg is None or self.force_callback is not None or (travel is not None and not travel.ready):
+        if tg is None or (travel is not None and not travel.ready):
             px, py, pz, vx, vy, vz = tip_state_scalar(q1, q2, q3, w1, w2, w3, self._l1, self._l2)
             if tg is None:  # no target yet: hold where the arm is
                 self.shaper.push(t, px, py, pz)
                 tg = self._at(t)
             if travel is not None and not travel.ready:  # travel starts from where the arm is
                 travel.reset(px, py, pz, vx, vy, vz)
-            if self.force_callback is not None:
-                F = self.force_callback(t, np.array((px, py, pz)), np.array((vx, vy, vz)))
-                if F is not None:
-                    extra_force_robot = F if extra_force_robot is None else np.asarray(F) + np.asarray(extra_force_robot)
         if travel is not None:  # travel spends force only while the motors have heat budget left
             tg = self._inside(*tg)
             rest = self.shaper.rest()

@@ -8,9 +8,11 @@ Two scenarios, each a short simulated run of :class:`~vishap.robot.servo.ServoLo
 * :func:`run_wall` — a unilateral virtual wall ``F = K·d + B·ḋ`` (depth ``d`` along the normal,
   the rendering the Colgate–Schenkel passivity bound ``b > K·T/2 + |B|`` is about) with a finger
   pushing the tip into it with a constant force. With ``RunSpec.mode`` set it runs that interaction
-  mode's own contact set-up instead: the mode's force law (``modes.yaml``) with its stiffest part
-  set to ``wall_k`` and its damping to ``wall_b``, the mode's contact gain Λ (λ_z = 0: the law gives
-  the normal force), and — with ``jitter`` — each command delayed by a servo tick duration drawn
+  mode's own contact set-up instead, through the system's servo step
+  (:class:`~vishap.runtime.core.ServoStep`, the one place force laws and Λ are applied): the mode's
+  force law (``modes.yaml``) with its stiffest part set to ``wall_k`` and its damping to ``wall_b``,
+  the object gain's hand-over to the mode's contact gain Λ (λ_z = 0: the law gives the normal
+  force), the guard, and — with ``jitter`` — each command delayed by a servo tick duration drawn
   from the demos' measured ones (:data:`SERVO_TICK_MS`).
 
 :func:`classify` labels the settled part of a run ``stable``, ``oscillating`` (bounded but not
@@ -131,29 +133,21 @@ def run_free_space(spec: RunSpec) -> dict:
 
 
 def run_wall(spec: RunSpec) -> dict:
-    """Hold at the wall point; a finger pushes ``push_n`` into the wall (−z) from 0.1 s on."""
-    from vishap.robot.kinematics import ik
+    """Hold at the wall point; a finger pushes ``push_n`` into the wall (−z) from 0.1 s on.
+
+    With ``spec.mode`` the run goes through the system's own servo step
+    (:class:`~vishap.runtime.core.ServoStep`: guard → the renderer's force law and object gain →
+    controller), fed each tick the record a scene step makes for a finger resting on the face from
+    the start and in contact from 0.1 s. Without one, a bare spring–damper wall ``K·d − B·ż`` is added
+    to the servo's PD (Λ = I), the textbook sampled wall of the Colgate–Schenkel bound."""
+    from vishap.robot.kinematics import ik, tip_state_scalar
 
     plant, ctrl = _make(spec, q0=ik(WALL_POINT))
-    z_wall = float(WALL_POINT[2])
-    K, B = float(spec.wall_k), float(spec.wall_b)
-    if spec.mode is not None:
-        law = contact_law(spec.mode, K, B, max_force_n=plant.limits.peak_force_n)
-        ctrl.set_lambda(law.lambda_contact)
-
-        def wall(t, p_robot, v_robot):
-            if law.depth(p_robot) <= 0.0:
-                return None
-            return law.force_robot(p_robot, v_robot)
-    else:
-        def wall(t, p_robot, v_robot):
-            d = z_wall - p_robot[2]  # penetration depth (m)
-            if d <= 0.0:
-                return None
-            return np.array([0.0, 0.0, K * d - B * v_robot[2]])
-
-    servo = ServoLoop(plant, ctrl, policy="hold", force_callback=wall)
+    servo = ServoLoop(plant, ctrl, policy="hold")
     n = int(round(spec.duration_s * plant.params.servo_rate_hz))
+    step = None if spec.mode is None else _servo_step(spec, servo)
+    z_wall, K, B = float(WALL_POINT[2]), float(spec.wall_k), float(spec.wall_b)
+    l1, l2 = plant.params.l1, plant.params.l2
     p = np.empty((n, 3))
     ref = np.tile(WALL_POINT, (n, 1))
     status = "ok"
@@ -162,7 +156,14 @@ def run_wall(spec: RunSpec) -> dict:
         t = i * plant.dt
         plant.apply_tip_force(push if t >= 0.1 else np.zeros(3))
         try:
-            servo.tick(t, WALL_POINT)
+            if step is not None:
+                step.tick(t, _resting_finger(i, t))
+            else:
+                joints = plant.read_scalar()
+                _, _, pz, _, _, vz = tip_state_scalar(*joints, l1, l2)
+                d = z_wall - pz  # penetration depth (m)
+                F = np.array([0.0, 0.0, K * d - B * vz]) if d > 0.0 else None
+                servo.tick(t, WALL_POINT, F, joints=joints)
         except DeviceError as exc:  # pragma: no cover
             status = f"device error: {exc}"
             p[i:] = np.nan
@@ -172,8 +173,34 @@ def run_wall(spec: RunSpec) -> dict:
             p[i:] = p[i]
             status = "left workspace"
             break
-    # the equilibrium depth under the push: K_total = K + Kp along the normal
     return _summarise(spec, p, ref, plant.dt, ctrl, status, settle_from=0.6)
+
+
+def _servo_step(spec: RunSpec, servo):
+    """The core's servo step over ``servo`` for one object: the plane z = WALL_POINT_z in mode
+    ``spec.mode``, its law from :func:`contact_law` (the plane is the device's contact point: no mount)."""
+    from vishap.runtime.core import ServoStep
+    from vishap.runtime.safety import TargetGuard
+    from vishap.world.modes import default_modes
+    from vishap.world.scene import SceneObject
+
+    mode = default_modes().get(spec.mode)
+    plane = SceneObject(name="wall", kind=mode.kinds[0], mode_name=spec.mode, mode=mode, spec=None,
+                        centre=WALL_POINT.copy(), R=np.eye(3), half=np.array([0.05, 0.05]), depth_m=0.05)
+    lim = servo.device.limits
+    guard = TargetGuard(np.asarray(lim.workspace_min, float), np.asarray(lim.workspace_max, float),
+                        WALL_POINT - np.array([0.0, 0.0, 0.02]))
+    law = contact_law(spec.mode, float(spec.wall_k), float(spec.wall_b), max_force_n=lim.peak_force_n)
+    return ServoStep(servo, guard, [plane], mount_offset=np.zeros(3), laws=[law])
+
+
+def _resting_finger(i: int, t: float):
+    """The record of tick ``i``: target the wall point, a finger's pad resting on it (the touch is now:
+    the object gain hands the normal over to the law), pushing (in contact) from 0.1 s."""
+    from vishap.runtime.core import TargetRecord
+
+    w = tuple(float(v) for v in WALL_POINT)
+    return TargetRecord(i + 1, w, t, 1.0, True, True, 0, True, t >= 0.1, w, (0.0, 0.0, 0.0), t)
 
 
 def contact_law(mode: str, stiffness_n_m: float, damping_n_s_m: float, *, max_force_n: float = DEFAULT.peak_force_n):

@@ -185,6 +185,9 @@ class ContactRenderer:
     tracking starts). The law acts while the scheduler renders the surface (an interaction is
     announced, the guard tracks or holds, the device has gone under the surface) and the device is
     under it. A law is reset when its object stops being the subject and when contact rendering ends.
+    The laws are built from the objects' modes (:func:`~vishap.world.force_laws.make_law`, checked
+    against what the device renders stably) unless ``laws`` gives them, one per object with its
+    ``lambda_contact`` (the stability sweep's, which probes stiffnesses past that limit).
 
     While Λ releases the normal axis (surface or engaged) and the device is *above* the surface,
     nothing else would hold it there: the law only pushes out, the position servo no longer acts
@@ -209,7 +212,7 @@ class ContactRenderer:
     """
 
     def __init__(self, objects, *, max_force_n: float, engage_m: float = 0.0003, dt: float = 0.001,
-                 hold_friction_n: float = 0.0, hold_ramp_m: float = 0.0):
+                 hold_friction_n: float = 0.0, hold_ramp_m: float = 0.0, laws=None):
         from vishap.robot.object_gain import ObjectGainScheduler
         from vishap.world.force_laws import make_law
 
@@ -223,7 +226,12 @@ class ContactRenderer:
             if not (math.isfinite(v) and (v > 0.0 if low == "> 0" else v >= 0.0)):
                 raise ConfigError(f"expected a finite number {low}, got {value!r}", field=name)
         self.objects = list(objects)
-        self.laws = [make_law(o, max_force_n=max_force_n) for o in self.objects]
+        if laws is None:
+            self.laws = [make_law(o, max_force_n=max_force_n) for o in self.objects]
+        elif len(laws) != len(self.objects):
+            raise ConfigError(f"expected one law per object ({len(self.objects)}), got {len(laws)}", field="laws")
+        else:  # built by the caller (the stability sweep's laws, stiffer than a scene may hold)
+            self.laws = list(laws)
         self.gain = ObjectGainScheduler(engage_m=engage_m, dt=dt)
         self.subject = -1
         self.depth = math.nan  # the device's depth under the subject's surface at the last update (m)
@@ -391,7 +399,7 @@ class ServoStep:
     """
 
     def __init__(self, servo, guard: TargetGuard, objects, *, mount_offset, engage_m: float = 0.0003,
-                 press_m: float = 0.0005, play: RestPlay | None = None):
+                 press_m: float = 0.0005, play: RestPlay | None = None, laws=None):
         self.servo = servo
         self.device = servo.device
         self.controller = servo.controller
@@ -401,7 +409,7 @@ class ServoStep:
         params = self.device.params
         self.contact = ContactRenderer(objects, max_force_n=float(self.device.limits.peak_force_n), engage_m=engage_m,
                                        dt=float(params.dt), hold_friction_n=float(params.coulomb_friction_n),
-                                       hold_ramp_m=float(params.tip_resolution_m))
+                                       hold_ramp_m=float(params.tip_resolution_m), laws=laws)
         self.play = RestPlay() if play is None else play
         self.last_action = "idle"
         self._key = None
