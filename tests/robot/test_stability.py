@@ -58,7 +58,8 @@ def test_each_mode_in_its_own_contact_set_up():
     from vishap.robot.stability import contact_law
 
     own = RunSpec(mode="hard_wall", wall_k=800.0, wall_b=2.0, sensor="encoder", jitter=True)
-    assert run_wall(own)["outcome"] == "stable"
+    r = run_wall(own)
+    assert r["outcome"] == "stable" and r["lambda_state"] == 2  # the core's object gain engaged: Λ = the mode's
     assert run_wall(RunSpec(**{**own.as_dict(), "wall_b": 0.0}))["outcome"] != "stable"
     key = contact_law("key_click", 2500.0, 2.0)
     assert key.lambda_contact == (1.0, 1.0, 0.0) and key.k3 == 2500.0
@@ -78,3 +79,12 @@ def test_renderable_stiffness_takes_every_mode_and_the_data_sheet():
     assert r["max_stiffness_n_m"] == [1600.0, 1600.0, 3500.0]  # the weakest mode; capped at 3.5 N/mm
     assert r["per_mode"]["hard_wall"]["max_stiffness_n_m"] == 2500.0
     assert r["passive_but_unstable"] == 0 and r["stable_but_not_passive"] == sum(x["outcome"] == "stable" for x in recs)
+
+
+def test_a_light_touch_does_not_engage_a_stiff_wall_and_a_firm_press_shows_it_rings():
+    # why the sweep presses twice: 1 N on 3.5 kN/m stays within the engage depth (the object gain stays at
+    # the surface, laterally held) and settles; 3 N engages the wall's own Λ and rings
+    light = RunSpec(mode="hard_wall", wall_k=3500.0, wall_b=2.0, sensor="encoder", jitter=True, push_n=1.0)
+    r = run_wall(light)
+    assert r["outcome"] == "stable" and r["lambda_state"] == 1
+    assert run_wall(RunSpec(**{**light.as_dict(), "push_n": 3.0}))["outcome"] != "stable"

@@ -10,7 +10,8 @@ Sweeps (each run: :mod:`vishap.robot.stability`, MuJoCo with ``--substeps`` phys
   period and both sensors: one physics step per period can hide the instability;
 * ``contact`` — every interaction mode in its own contact set-up (its law with the stiffest part at
   K and damping B, its contact gain Λ, the encoder, ``--substeps``, the demos' measured servo jitter
-  and the plant's Coulomb friction), each point beside Colgate's bound ``b > K·T/2 + |B|``. From it:
+  and the plant's Coulomb friction; the system's own servo step, a finger resting on the face and
+  pushing with each of :data:`CONTACT_PUSH_N`), each point beside Colgate's bound ``b > K·T/2 + |B|``. From it:
   the largest stiffness renderable at each damping (every mode stable at every K up to it), never
   above the data sheet's 3.5 N/mm — the table ``gains.yaml`` holds and the force laws are checked
   against.
@@ -41,6 +42,10 @@ WALL_K = [250, 500, 1000, 2000, 4000, 8000, 16000, 32000, 64000]
 WALL_B = [0, 2, 5, 10, 20, 40]
 CONTACT_K = [250, 500, 800, 1600, 2500, 3500, 5000]
 CONTACT_B = [0, 1, 2, 4]
+#: the finger's push in the contact sweep (N): a light touch and a firm press (the wall demo presses its
+#: 800 N/m wall 3–5 mm, 2.4–4 N); 1 N alone stays within the object gain's engage depth on walls
+#: stiffer than 3.3 kN/m, where the mode's own contact gain never takes over
+CONTACT_PUSH_N = [1.0, 3.0]
 SWEEP_KP = [200, 800, 3200]  # Kp of the filter and delay sweeps (Kv ∝ √Kp)
 COLORS = {"stable": "tab:green", "oscillating": "tab:orange", "diverged": "tab:red"}
 
@@ -58,11 +63,11 @@ def _grids(quick: bool) -> dict:
         from vishap.world.modes import default_modes
 
         return dict(kp=KP, kv=KV, a=A, rates=RATES, delays=DELAYS, wall_k=WALL_K, wall_b=WALL_B, sensors=["exact", "encoder"],
-                    contact_k=CONTACT_K, contact_b=CONTACT_B, modes=sorted(default_modes().modes))
+                    contact_k=CONTACT_K, contact_b=CONTACT_B, contact_push=CONTACT_PUSH_N, modes=sorted(default_modes().modes))
     return dict(
         kp=[800, 6400], kv=[0, 32], a=[500], rates=[20], delays=[12],
         wall_k=[32000], wall_b=[0], sensors=["exact"],
-        contact_k=[800, 5000], contact_b=[2], modes=["hard_wall"],
+        contact_k=[800, 5000], contact_b=[2], contact_push=[1.0], modes=["hard_wall"],
     )
 
 
@@ -152,7 +157,8 @@ def run_sweeps(substeps: int, quick: bool = False, *, workers: int = 1, address:
     for mode in g["modes"]:
         for K in g["contact_k"]:
             for B in g["contact_b"]:
-                add("contact", "wall", sensor="encoder", wall_k=K, wall_b=B, mode=mode, jitter=True)
+                for push in g["contact_push"]:
+                    add("contact", "wall", sensor="encoder", wall_k=K, wall_b=B, mode=mode, jitter=True, push_n=push)
     for sub in sorted({1, substeps}):
         for sensor in g["sensors"]:
             for K in g["wall_k"]:
@@ -234,6 +240,17 @@ def _scatter(ax, recs, x, y, title, xlog=True, ylog=False):
     ax.set_ylabel(y)
 
 
+def _worst_per_point(rows: list[dict]) -> list[dict]:
+    """One row per (K, B): the one with the worst outcome over the finger's pushes."""
+    rank = {"stable": 0, "oscillating": 1, "diverged": 2}
+    worst: dict = {}
+    for r in rows:
+        k = (r["wall_k"], r["wall_b"])
+        if k not in worst or rank[r["outcome"]] > rank[worst[k]["outcome"]]:
+            worst[k] = r
+    return list(worst.values())
+
+
 def chart(recs: list[dict], out: Path, substeps: int, b_tip: float, T: float) -> Path:
     fig, axes = new_figure(3, 4, figsize=(18, 12.5))
     axes = axes.ravel()
@@ -279,8 +296,10 @@ def chart(recs: list[dict], out: Path, substeps: int, b_tip: float, T: float) ->
     con = [r for r in recs if r["sweep"] == "contact"]
     for j, mode in enumerate(sorted({r["mode"] for r in con})[:4]):
         ax = axes[8 + j]
-        sub = [r for r in con if r["mode"] == mode]
-        _scatter(ax, sub, "wall_k", "wall_b", f"{mode}: its Λ and law, encoder, jitter, friction", ylog=True)
+        sub = _worst_per_point([r for r in con if r["mode"] == mode])
+        pushes = "/".join(f"{p:g}" for p in sorted({r["push_n"] for r in con}))
+        _scatter(ax, sub, "wall_k", "wall_b", f"{mode}: its Λ and law, encoder, jitter, friction ({pushes} N, worst)",
+                 ylog=True)
         for r in sub:  # Colgate's verdict point by point: a ring where the bound calls the point passive
             if r["colgate_passive"]:
                 ax.scatter(r["wall_k"], r["wall_b"], s=80, facecolors="none", edgecolors="k", linewidths=0.8)

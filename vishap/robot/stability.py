@@ -173,7 +173,10 @@ def run_wall(spec: RunSpec) -> dict:
             p[i:] = p[i]
             status = "left workspace"
             break
-    return _summarise(spec, p, ref, plant.dt, ctrl, status, settle_from=0.6)
+    rec = _summarise(spec, p, ref, plant.dt, ctrl, status, settle_from=0.6)
+    if step is not None:  # the object gain's state at the end (2: engaged, the mode's own contact gain)
+        rec["lambda_state"] = step.contact.state_code
+    return rec
 
 
 def _servo_step(spec: RunSpec, servo):
