@@ -114,7 +114,8 @@ def _summary(results, in_place_m):
 
 def _brief(rs, trajs, in_place_m):
     sm = _summary(rs, in_place_m)
-    out = {k: sm[k] for k in ("device_in_place_rate", "device_ready_rate", "contact_position_error_mm", "contact_lead_time_ms_min")}
+    out = {k: sm[k] for k in ("device_in_place_rate", "device_ready_rate", "contact_position_error_mm", "contact_lead_time_ms_min",
+                              "ready_checks_rate")}
     straight = [r.in_place for r, tr in zip(rs, trajs) if abs(tr.bow_m) < 0.002]
     out["straight_paths_in_place_rate"] = float(np.mean(straight)) if straight else None
     return out
@@ -202,20 +203,26 @@ def _perfect_world_class():
         """The world with perfect prediction: X_d is the true touch point of the trajectory once it is
         known (``ahead`` seconds before the touch; None: from the start) — a bound, not a policy."""
 
-        def truth(self, traj, ahead):
+        def truth(self, traj, ahead, path: bool = False):
+            """``path``: the target is the true finger's own projection on the surface at the time the
+            servo reaches it — the device under the finger all the way, its run-up exact."""
             self._obj = self.scene.object(traj.object_name)
             self.glide_m_s = 0.0  # the plan told the true touch point: sent there at once, as before the glide
+            self._traj = traj if path else None
             self._touch = self._obj.project(traj.position(traj.t_surface))
             self._t_known = -1e9 if ahead is None else traj.t_surface - ahead
-            self._now = -1e9
+            self._now = self._t_sample = -1e9
 
         def update(self, t, p_robot_finger, p_robot_device=None):
             self._now = t + self.latency_s
+            self._t_sample = t
             return super().update(t, p_robot_finger, p_robot_device)
 
         def _target(self, subj, p, c, h, in_contact, *approach):
             X = super()._target(subj, p, c, h, in_contact, *approach)
             if subj is self._obj and not in_contact and subj.mode.target != "centre" and self._now >= self._t_known:
+                if self._traj is not None:
+                    return self._obj.project(self._traj.position(min(self._servo_time(self._t_sample), self._traj.t_surface)))
                 return self._touch.copy()
             return X
 
@@ -235,7 +242,7 @@ def _approach(case: tuple):
     scene = load_scene(name)
     if "perfect" in world:
         w = _perfect_world_class()(scene, latency_s=vision.latency_s, contact_model=world["contact_model"])
-        w.truth(tr, world["perfect"])
+        w.truth(tr, world["perfect"], path=world.get("path", False))
     else:
         w = World(scene, latency_s=vision.latency_s, **world)
     return run_approach(scene, tr, w, vision=vision, seed=seed, in_place_m=in_place_m, stop_after_contact_s=stop)
@@ -278,6 +285,8 @@ def run(args) -> dict:
         blocks[("sens", label)] = on_policy_set({"contact_model": cm}, vm)
     for label, ahead in (("perfect_prediction", None), ("perfect_prediction_100ms_before_touch", 0.1)):
         blocks[("sens", label)] = on_policy_set({"perfect": ahead, "contact_model": cm})
+    # the bound on readiness: the true finger's path as the target (the run-up exact) — what the servo allows
+    blocks[("sens", "perfect_path")] = on_policy_set({"perfect": None, "path": True, "contact_model": cm})
     flat = [c for cases in blocks.values() for c in cases]
     done = iter(map_cases(_approach, flat, desc="world", **engine_args(args)))
     results = {key: [next(done) for _ in cases] for key, cases in blocks.items()}
