@@ -140,6 +140,21 @@ def test_the_renderer_refuses_a_setting_that_is_not_a_finite_number_in_range_nam
     ContactRenderer(load_scene("wall").objects, max_force_n=8.5, hold_friction_n=0.0, hold_ramp_m=0.0)
 
 
+def test_the_renderer_takes_laws_built_by_the_caller_one_per_object():
+    """The stability sweep's laws (stiffer than a scene may hold) are rendered as given; a list that does
+    not match the objects is refused naming ``laws``."""
+    from vishap._core.errors import ConfigError
+    from vishap.robot.stability import contact_law
+
+    objects = load_scene("wall").objects
+    law = contact_law("hard_wall", 5000.0, 2.0)  # make_law would refuse 5000 N/m at 2 N·s/m
+    r = ContactRenderer(objects, max_force_n=8.5, laws=[law])
+    assert r.laws[0] is law
+    with pytest.raises(ConfigError) as err:
+        ContactRenderer(objects, max_force_n=8.5, laws=[law, law])
+    assert err.value.field == "laws"
+
+
 def test_the_renderer_holds_a_device_above_the_surface_there_while_it_renders_the_surface():
     """Over the band the hold pulls with the law's spring on the height beyond it, its damping and the
     arm's friction (so it brings the face into the band); inside the band only the damping of a face
