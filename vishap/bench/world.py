@@ -17,7 +17,11 @@ peak speeds 0.1–0.5 m/s, meets the MuJoCo PHANToM behind the demos' own servo 
 * ``multi_object`` — the panel scene: subject at the touch, cuts through other objects;
 * ``servo_cost_us`` per scene — the force law alone and a whole servo tick with it, beside a
   tick without any law (the wall must not pay for button or fabric machinery);
-* ``policies`` — prediction/handover policies on the same approaches (one chart).
+* ``policies`` — prediction/handover policies on the same approaches (one chart);
+* ``sensitivity`` — the same wall approaches with better fingertip data (60 Hz / 20 ms, no noise,
+  an ideal 250 Hz camera) and with the truth given to the world: the touch point from the start or
+  100 ms before the touch (``perfect_prediction*``: the device waits there still), and the finger's
+  own path (``perfect_path``: the run-up exact — the bound on readiness the servo side allows).
 """
 from __future__ import annotations
 
