@@ -36,3 +36,26 @@ def test_perfect_prediction_bound_runs_on_the_world_and_puts_the_device_in_place
     w.truth(tr, None)
     r = run_approach(scene, tr, w, vision=VisionModel(), stop_after_contact_s=0.02)
     assert r.in_place and r.contact_error_m < 0.001
+
+
+def test_the_perfect_path_bound_readies_a_device_the_still_bound_cannot():
+    """A finger landing while it slides sideways (0.2 m/s reach): told the touch point, the device
+    waits there still and fails ``still_tangential``; told the finger's path (``perfect_path``), it runs
+    up with the finger and is ready — the bound on readiness the servo side allows."""
+    import pytest
+
+    pytest.importorskip("mujoco")
+    from vishap.bench.world import _perfect_world_class
+    from vishap.world.closed_loop import VisionModel, run_approach
+    from vishap.world.scene import load_scene
+    from vishap.world.trajectories import make_approaches
+
+    scene = load_scene("wall")
+    tr = make_approaches(scene, 40, seed=7, bow_fraction=0.10, slide=False)[6]
+    out = {}
+    for path in (False, True):
+        w = _perfect_world_class()(scene, latency_s=0.033, contact_model="both")
+        w.truth(tr, None, path=path)
+        out[path] = run_approach(scene, tr, w, vision=VisionModel(), stop_after_contact_s=0.02)
+    assert out[False].in_place and not out[False].ready_checks["still_tangential"]
+    assert out[True].ready and out[True].contact_error_m < 0.001
