@@ -548,31 +548,32 @@ def test_the_landing_glide_spreads_a_new_landing_point_over_the_time_left_and_cr
         World(load_scene("wall"), glide_m_s=-1.0)
 
 
+def _fabric_target_at_touch(recording: str, **kw) -> float:
+    """The fabric demo's world (its stereo noise at the object, latency and meeting-point model) fed a
+    recorded touch (vision's samples of the pad and the device's contact point, ``tests/world/data``):
+    the target's distance (m) along the surface from where the finger lands, (0.220, 0.005) m, at the
+    touch (1.584 s)."""
+    from pathlib import Path
+
+    from vishap.world.predictor import KalmanPredictor
+
+    rows = np.loadtxt(Path(__file__).parent / "data" / recording, delimiter=",")
+    w = World(load_scene("fabric"), predictor=KalmanPredictor(meas_std_m=0.00357), latency_s=0.0183,
+              contact_model="both", **kw)
+    X = None
+    for t, fx, fy, fz, dx, dy, dz in rows[rows[:, 0] < 1.584]:  # the samples before the touch
+        X = w.update(t, None if np.isnan(fx) else [fx, fy, fz], [dx, dy, dz]).X_d
+    return float(np.linalg.norm(X[:2] - np.array([0.220, 0.005])))
+
+
 def test_the_glide_keeps_pace_with_a_finger_still_sliding_in_after_the_lines_time_is_up():
     """The fabric demo's touch (seed 4; vision's samples of the pad, recorded): the finger decelerates
     obliquely to land, so the straight line's time left runs out ~300 ms early, while the landing point
     the plan holds is 3 mm from where the glide began. Creeping at ``glide_m_s`` alone, the target was
     still 2.1 mm off at the touch; keeping the fitted reach's pace along the correction it is within
-    0.5 mm (the finger lands on (0.220, 0.005) m)."""
-    from pathlib import Path
-
-    from vishap.world.predictor import KalmanPredictor
-
-    rows = np.loadtxt(Path(__file__).parent / "data" / "fabric_seed4_landing.csv", delimiter=",")
-    landing = np.array([0.220, 0.005])
-
-    def target_at_touch(**kw):
-        # the demo's world: its stereo noise at the object, latency and meeting-point model
-        w = World(load_scene("fabric"), predictor=KalmanPredictor(meas_std_m=0.00357), latency_s=0.0183,
-                  contact_model="both", **kw)
-        X = None
-        for t, fx, fy, fz, dx, dy, dz in rows[rows[:, 0] < 1.584]:  # the samples before the touch
-            finger = None if np.isnan(fx) else [fx, fy, fz]
-            X = w.update(t, finger, [dx, dy, dz]).X_d
-        return np.linalg.norm(X[:2] - landing)
-
-    assert target_at_touch() < 0.0005
-    assert target_at_touch(glide_with_finger=False) > 0.002
+    0.5 mm."""
+    assert _fabric_target_at_touch("fabric_seed4_landing.csv") < 0.0005
+    assert _fabric_target_at_touch("fabric_seed4_landing.csv", glide_with_finger=False) > 0.002
 
 
 def test_the_glide_keeps_pace_but_never_runs_ahead_of_the_finger():
@@ -581,13 +582,4 @@ def test_the_glide_keeps_pace_but_never_runs_ahead_of_the_finger():
     Keeping the finger's pace without a bound, the target followed the overshoot 1.3 mm past where the
     finger was, and creeping back at ``glide_m_s`` against the run-up it was still 2.0 mm off at the
     touch; held to the fitted finger's own position when the servo gets there, it is within 1 mm."""
-    from pathlib import Path
-
-    from vishap.world.predictor import KalmanPredictor
-
-    rows = np.loadtxt(Path(__file__).parent / "data" / "fabric_seed1_landing.csv", delimiter=",")
-    w = World(load_scene("fabric"), predictor=KalmanPredictor(meas_std_m=0.00357), latency_s=0.0183, contact_model="both")
-    X = None
-    for t, fx, fy, fz, dx, dy, dz in rows[rows[:, 0] < 1.584]:
-        X = w.update(t, None if np.isnan(fx) else [fx, fy, fz], [dx, dy, dz]).X_d
-    assert np.linalg.norm(X[:2] - np.array([0.220, 0.005])) < 0.001
+    assert _fabric_target_at_touch("fabric_seed1_landing.csv") < 0.001

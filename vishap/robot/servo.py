@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 
-
 from vishap._core.errors import ConfigError
 from vishap.robot.controller import Controller
 from vishap.robot.device import Device
