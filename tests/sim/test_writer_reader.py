@@ -49,6 +49,7 @@ def test_same_seed_same_bytes_and_reader_round_trip(tmp_path):
                      ("finger_velocity_robot", (3, 3)), ("ee_robot", (3, 3)), ("T_robot_cam", (4, 4))):
         assert gt[k].shape == shape, k
     assert str(gt["scene"]) == "wall" and int(gt["seed"]) == 3 and float(gt["tip_radius"]) == 0.008
+    assert float(gt["exposure_s"]) == 0.012  # the camera model's own exposure
     np.testing.assert_allclose(seq.T_robot_cam, gt["T_robot_cam"])
     # the files hold what the in-memory generator yields
     spec = SequenceSpec(scene="wall", frames=3, seed=3, width=160, height=120, hand_free_frames=1, lighting="step")
@@ -65,12 +66,20 @@ def test_same_seed_same_bytes_and_reader_round_trip(tmp_path):
         seq[3]
 
 
+@pytest.mark.render
+def test_the_exposure_is_a_camera_setting_recorded_with_the_sequence(tmp_path):
+    assert main(ARGS + ["--exposure-ms", "4", "--out", str(tmp_path / "short")]) == 0
+    assert float(SyntheticSequence(tmp_path / "short").gt["exposure_s"]) == pytest.approx(0.004)
+
+
 @pytest.mark.parametrize("args,match", [
     (["--scene", "moon"], "unknown scene"),
     (["--frames", "-2"], "frames"),
     (["--frames", "0"], "frames"),
     (["--background", "plaid"], "unknown background"),
     (["--skin-tone", "green"], "unknown skin tone"),
+    (["--exposure-ms", "0"], "exposure"),
+    (["--exposure-ms", "50"], "longer than a frame"),
 ])
 def test_bad_input_gives_one_error_and_writes_nothing(tmp_path, capsys, args, match):
     base = ["synth", "--scene", "wall", "--frames", "3", "--resolution", "160x120", "--quiet"]

@@ -51,6 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-effects", dest="effects", action="store_false",
                    help="exact pixels: no sensor noise, defocus, motion blur or auto-exposure")
     p.add_argument("--msaa", type=int, default=0, help="anti-aliasing samples (0, 2, 4, 8; labels then cost a pass)")
+    p.add_argument("--exposure-ms", type=float, default=None, metavar="MS",
+                   help="the cameras' exposure time (default 12 ms): motion blur shortens with it, sensor noise "
+                        "grows as the gain makes up the level under the same light")
     add_quiet_flag(p)
     p.add_argument("--store", choices=("png", "video"), default="png",
                    help="png: one file per image (default); video: each image stream as a lossless FFV1 video "
@@ -69,7 +72,8 @@ def _run(args: argparse.Namespace) -> int:
     spec = SequenceSpec(scene=args.scene, frames=args.frames, seed=args.seed, trajectory=args.trajectory,
                         width=args.resolution[0], height=args.resolution[1], rig=rig, lighting=args.lighting,
                         skin_tone=args.skin_tone, background=args.background, occlusion=args.occlusion,
-                        effects=args.effects, msaa=args.msaa, fps=args.fps, hand_free_frames=args.hand_free,
+                        effects=args.effects, msaa=args.msaa, fps=args.fps,
+                        exposure_s=None if args.exposure_ms is None else args.exposure_ms / 1e3, hand_free_frames=args.hand_free,
                         start_s=args.start, store=args.store)
     _check_render_args(spec)
     if args.seeds is not None or args.workers is not None or args.address is not None:

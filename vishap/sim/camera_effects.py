@@ -8,7 +8,11 @@ Each effect models one property of a real colour camera at a realistic level and
 * ``defocus`` — a slight Gaussian blur (σ in pixels at 640 px width, scaled with resolution);
 * ``motion_blur`` — a line blur along the hand's image motion during the exposure, applied to the
   hand's pixels only (the scene is static);
-* ``noise`` — signal-dependent sensor noise: σ² = read² + shot·I (in 8-bit digital numbers).
+* ``noise`` — signal-dependent sensor noise: σ² = read² + shot·I (in 8-bit digital numbers) at the
+  reference exposure (``reference_exposure_s``). A shorter exposure collects fewer photons under
+  the same light and the camera's gain makes up the level (by ``e`` = reference / exposure), so the
+  read noise grows by ``e`` and the shot noise's variance by ``e``: σ² = (e·read)² + e·shot·I. The
+  motion blur shortens with the exposure; the image's level does not change.
 
 The labels and depth are untouched: they are the geometry at the exposure's mid-time.
 Randomness comes from ``numpy.random.Generator`` seeded by (seed, frame time, camera).
@@ -19,6 +23,8 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+
+from vishap._core.errors import ConfigError
 
 __all__ = ["CameraEffects", "EffectsState", "motion_blur_kernel"]
 
@@ -37,8 +43,20 @@ class CameraEffects:
     gain_mismatch: float = 0.03      # right/left gain ratio − 1
     defocus_sigma_px: float = 0.7    # at 640 px image width
     exposure_s: float = 0.012        # exposure time (motion blur length = image speed × exposure)
-    read_noise_dn: float = 1.6
-    shot_noise_dn: float = 0.035     # variance per DN of signal
+    read_noise_dn: float = 1.6       # at the reference exposure
+    shot_noise_dn: float = 0.035     # variance per DN of signal, at the reference exposure
+    reference_exposure_s: float = 0.012  # the exposure the noise figures are for (the default one)
+
+    def __post_init__(self):
+        for name in ("exposure_s", "reference_exposure_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise ConfigError(f"{name} must be a positive number of seconds, got {v!r}", field=name)
+
+    @property
+    def noise_gain(self) -> float:
+        """The gain that makes up a shorter exposure's level (reference / exposure)."""
+        return self.reference_exposure_s / self.exposure_s
 
     @classmethod
     def off(cls) -> "CameraEffects":
@@ -125,7 +143,8 @@ def apply_effects(
             img *= state.gain * (1.0 + (fx.gain_mismatch if side == "right" else 0.0))
         if fx.noise:
             rng = np.random.default_rng([seed & 0xFFFFFFFF, int(round(t * 1e6)) & 0xFFFFFFFF, side_i])
-            sigma = np.sqrt(fx.read_noise_dn**2 + fx.shot_noise_dn * np.clip(img, 0, 255))
+            e = fx.noise_gain
+            sigma = np.sqrt((e * fx.read_noise_dn) ** 2 + e * fx.shot_noise_dn * np.clip(img, 0, 255))
             img += rng.standard_normal(img.shape, dtype=np.float32) * sigma
         out[side] = np.clip(img + 0.5, 0, 255).astype(np.uint8)
     state.last_t = t

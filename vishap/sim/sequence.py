@@ -65,6 +65,9 @@ class SequenceSpec:
     occlusion: bool = True
     effects: bool = True
     msaa: int = 0
+    #: the cameras' exposure time (s; None: the camera model's, 12 ms): the motion blur's length, and the
+    #: sensor noise of a shorter exposure under the same light (:class:`~vishap.sim.camera_effects.CameraEffects`)
+    exposure_s: float | None = None
     fps: float | None = None
     hand_free_frames: int | None = None
     start_s: float = 0.0
@@ -86,6 +89,10 @@ class SequenceSpec:
             raise ConfigError(f"hand-free frames must be >= 0, got {self.hand_free_frames}", field="hand_free_frames")
         if not 0.0 <= float(self.start_s) < 1e5:
             raise ConfigError(f"start time must be >= 0 s, got {self.start_s}", field="start_s")
+        if self.exposure_s is not None and not (isinstance(self.exposure_s, (int, float))
+                                                 and np.isfinite(self.exposure_s) and 0.0 < self.exposure_s <= 1.0):
+            raise ConfigError(f"exposure must be a positive time up to 1 s, got {self.exposure_s!r} s",
+                              field="exposure_s")
         if int(self.msaa) not in (0, 2, 4, 8):
             raise ConfigError(f"msaa must be 0, 2, 4 or 8, got {self.msaa}", field="msaa")
         from vishap.scale.store import STORES
@@ -150,6 +157,9 @@ def prepare(spec: SequenceSpec) -> Prepared:
         tspec = tspec.model_copy(update={"fps": float(spec.fps)})
     if spec.hand_free_frames is not None:
         tspec = tspec.model_copy(update={"hand_free_frames": int(spec.hand_free_frames)})
+    if spec.exposure_s is not None and spec.exposure_s > 1.0 / tspec.fps + 1e-12:
+        raise ConfigError(f"exposure {spec.exposure_s * 1e3:g} ms is longer than a frame at {tspec.fps:g} fps "
+                          f"({1e3 / tspec.fps:.1f} ms)", field="exposure_s")
     duration = spec.start_s + spec.frames / tspec.fps
     traj = Trajectory(tspec, surface_z_m=scene.surface_z_m, touch_region=touch_region(scene, passive),
                       seed=spec.seed, file=tfile, light_fn=light_function(spec.lighting, duration, spec.seed))
@@ -184,7 +194,14 @@ def make_renderer(p: Prepared):
 
     s = p.spec
     return StereoRenderer(p.rig, p.T_robot_cam, p.scene_spec, background=s.background, seed=s.seed,
-                          skin_tone=s.skin_tone, effects=CameraEffects() if s.effects else None, msaa=s.msaa)
+                          skin_tone=s.skin_tone, effects=camera_effects(s), msaa=s.msaa)
+
+
+def camera_effects(spec: SequenceSpec) -> CameraEffects | None:
+    """The camera model a sequence is drawn with (None: exact pixels)."""
+    if not spec.effects:
+        return None
+    return CameraEffects() if spec.exposure_s is None else CameraEffects(exposure_s=float(spec.exposure_s))
 
 
 def generate(spec: SequenceSpec, *, renderer=None) -> Iterator[tuple[FrameState, RenderedPair, dict]]:
@@ -231,7 +248,9 @@ def constants(p: Prepared, renderer=None) -> dict:
            "hand_free_frames": np.int64(p.trajectory.spec.hand_free_frames),
            "trajectory": np.str_(p.trajectory.spec.name), "phase_names": np.array(PHASES),
            "lighting": np.str_(p.spec.lighting), "occlusion": np.bool_(p.spec.occlusion),
-           "effects": np.bool_(p.spec.effects), "passive_shape": np.str_(p.passive.shape),
+           "effects": np.bool_(p.spec.effects), "exposure_s": np.float64(
+               (camera_effects(p.spec) or CameraEffects()).exposure_s if p.spec.effects else 0.0),
+           "passive_shape": np.str_(p.passive.shape),
            "passive_size_m": np.array(p.passive.size_m), "passive_mount_offset_robot": np.array(p.passive.mount_offset_robot),
            "surface_z": np.float64(p.scene_spec.surface_z_m)}
     if renderer is not None:
