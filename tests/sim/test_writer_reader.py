@@ -80,6 +80,7 @@ def test_the_exposure_is_a_camera_setting_recorded_with_the_sequence(tmp_path):
     (["--skin-tone", "green"], "unknown skin tone"),
     (["--exposure-ms", "0"], "exposure"),
     (["--exposure-ms", "50"], "longer than a frame"),
+    (["--exposure-ms", "4", "--no-effects"], "needs the camera effects"),
 ])
 def test_bad_input_gives_one_error_and_writes_nothing(tmp_path, capsys, args, match):
     base = ["synth", "--scene", "wall", "--frames", "3", "--resolution", "160x120", "--quiet"]

@@ -93,6 +93,9 @@ class SequenceSpec:
                                                  and np.isfinite(self.exposure_s) and 0.0 < self.exposure_s <= 1.0):
             raise ConfigError(f"exposure must be a positive time up to 1 s, got {self.exposure_s!r} s",
                               field="exposure_s")
+        if self.exposure_s is not None and not self.effects:
+            raise ConfigError("an exposure needs the camera effects (exact pixels have no motion blur or noise)",
+                              field="exposure_s")
         if int(self.msaa) not in (0, 2, 4, 8):
             raise ConfigError(f"msaa must be 0, 2, 4 or 8, got {self.msaa}", field="msaa")
         from vishap.scale.store import STORES
@@ -248,8 +251,8 @@ def constants(p: Prepared, renderer=None) -> dict:
            "hand_free_frames": np.int64(p.trajectory.spec.hand_free_frames),
            "trajectory": np.str_(p.trajectory.spec.name), "phase_names": np.array(PHASES),
            "lighting": np.str_(p.spec.lighting), "occlusion": np.bool_(p.spec.occlusion),
-           "effects": np.bool_(p.spec.effects), "exposure_s": np.float64(
-               (camera_effects(p.spec) or CameraEffects()).exposure_s if p.spec.effects else 0.0),
+           "effects": np.bool_(p.spec.effects),  # exact pixels model no exposure: exposure_s 0
+           "exposure_s": np.float64(camera_effects(p.spec).exposure_s if p.spec.effects else 0.0),
            "passive_shape": np.str_(p.passive.shape),
            "passive_size_m": np.array(p.passive.size_m), "passive_mount_offset_robot": np.array(p.passive.mount_offset_robot),
            "surface_z": np.float64(p.scene_spec.surface_z_m)}
