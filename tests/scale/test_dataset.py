@@ -63,6 +63,8 @@ def test_build_a_mixed_spec_equals_synth_runs_and_resumes(tmp_path, capsys):
     ('defaults: {frames: 0}\ngroups:\n  - {name: a, scene: wall, seeds: "0:1"}', "groups.0.frames", "positive"),
     ('groups:\n  - {name: "../up", scene: wall, seeds: "0:1"}', "groups.0.name", "folder name"),
     ("groups: []", "groups", "at least 1"),
+    ('groups:\n  - {name: a, scene: wall, seeds: "0:2", exposure_s: [0.004, 0.05]}', "groups.0.exposure_s",
+     "longer than a frame"),
 ])
 def test_bad_spec_names_the_field(tmp_path, capsys, text, field, match):
     spec = tmp_path / "spec.yaml"
@@ -75,3 +77,16 @@ def test_bad_spec_names_the_field(tmp_path, capsys, text, field, match):
     err = capsys.readouterr().err
     assert f"field '{field}'" in err and err.count("\n") == 1
     assert not out.exists()
+
+
+def test_the_exposure_is_a_sequence_option_recorded_only_when_set(tmp_path):
+    from vishap.scale.sequences import spec_parameters
+
+    spec = tmp_path / "spec.yaml"
+    spec.write_text('groups:\n  - {name: a, scene: wall, seeds: "0:1", frames: 2, exposure_s: 0.004}\n'
+                    '  - {name: b, scene: wall, seeds: "0:1", frames: 2}')
+    _, jobs = load_dataset_spec(spec)
+    assert [j.spec.exposure_s for j in jobs] == [0.004, None]
+    # the default leaves the manifest's parameters as they were before the option existed
+    assert jobs[0].parameters["exposure_s"] == 0.004 and "exposure_s" not in jobs[1].parameters
+    assert "exposure_s" not in spec_parameters(jobs[1].spec)

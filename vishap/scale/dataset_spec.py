@@ -22,7 +22,8 @@
 
 Sequence options (each a value or a list): ``trajectory``, ``frames``, ``resolution`` (WxH),
 ``fps``, ``hand_free``, ``start_s``, ``lighting``, ``skin_tone``, ``background``, ``occlusion``,
-``effects`` (camera effects: noise, defocus, motion blur, auto-exposure), ``msaa``, ``store``
+``effects`` (camera effects: noise, defocus, motion blur, auto-exposure), ``exposure_s`` (the
+cameras' exposure time, s; default the camera model's 12 ms), ``msaa``, ``store``
 (``png`` or ``video``: lossless FFV1, :mod:`vishap.scale.store`). The spec is
 checked on load, every sequence included: the first problem is one :class:`ConfigError` naming the
 file and the field (``groups.1.skin_tone``).
@@ -59,6 +60,7 @@ class SequenceOptions(Schema):
     background: str | list[str] | None = None
     occlusion: bool | list[bool] | None = None
     effects: bool | list[bool] | None = None
+    exposure_s: float | list[float] | None = None
     msaa: int | list[int] | None = None
     store: str | list[str] | None = None
 
@@ -109,7 +111,8 @@ class DatasetSpec(Schema):
 
 _SPEC_FIELDS = {"trajectory": "trajectory", "frames": "frames", "fps": "fps", "hand_free": "hand_free_frames",
                 "start_s": "start_s", "lighting": "lighting", "skin_tone": "skin_tone", "background": "background",
-                "occlusion": "occlusion", "effects": "effects", "msaa": "msaa", "store": "store"}
+                "occlusion": "occlusion", "effects": "effects", "exposure_s": "exposure_s", "msaa": "msaa",
+                "store": "store"}
 
 _SPEC_KEYS = {v: k for k, v in _SPEC_FIELDS.items()}
 

@@ -57,6 +57,8 @@ def spec_parameters(spec, *, rig_sha256: str | None = None) -> dict:
     d = {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec) if f.name not in ("rig", "T_robot_cam")}
     if d.get("store") == "png":
         del d["store"]  # the default layout: manifests written before there was a choice still match
+    if d.get("exposure_s") is None:
+        d.pop("exposure_s", None)  # the camera model's own exposure: likewise
     if spec.rig is not None:
         d["rig_sha256"] = rig_sha256 or "in-memory"
     if spec.T_robot_cam is not None:
