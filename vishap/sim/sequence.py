@@ -89,13 +89,11 @@ class SequenceSpec:
             raise ConfigError(f"hand-free frames must be >= 0, got {self.hand_free_frames}", field="hand_free_frames")
         if not 0.0 <= float(self.start_s) < 1e5:
             raise ConfigError(f"start time must be >= 0 s, got {self.start_s}", field="start_s")
-        if self.exposure_s is not None and not (isinstance(self.exposure_s, (int, float))
-                                                 and np.isfinite(self.exposure_s) and 0.0 < self.exposure_s <= 1.0):
-            raise ConfigError(f"exposure must be a positive time up to 1 s, got {self.exposure_s!r} s",
-                              field="exposure_s")
-        if self.exposure_s is not None and not self.effects:
-            raise ConfigError("an exposure needs the camera effects (exact pixels have no motion blur or noise)",
-                              field="exposure_s")
+        if self.exposure_s is not None:
+            if not self.effects:
+                raise ConfigError("an exposure needs the camera effects (exact pixels have no motion blur or noise)",
+                                  field="exposure_s")
+            camera_effects(self)  # the camera model checks its exposure (a positive time)
         if int(self.msaa) not in (0, 2, 4, 8):
             raise ConfigError(f"msaa must be 0, 2, 4 or 8, got {self.msaa}", field="msaa")
         from vishap.scale.store import STORES
